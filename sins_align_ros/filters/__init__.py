@@ -1,0 +1,1 @@
+"""filters layer of sins_align_ros (no ROS imports)."""

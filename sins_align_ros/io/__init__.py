@@ -1,0 +1,1 @@
+"""io layer of sins_align_ros (no ROS imports)."""

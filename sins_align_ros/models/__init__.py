@@ -1,0 +1,1 @@
+"""models layer of sins_align_ros (no ROS imports)."""

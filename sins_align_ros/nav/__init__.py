@@ -1,0 +1,1 @@
+"""nav layer of sins_align_ros (no ROS imports)."""

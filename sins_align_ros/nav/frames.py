@@ -1,0 +1,189 @@
+"""The one module that owns frame and attitude conventions.
+
+Conventions (DESIGN.md):
+
+* navigation frame ENU (x east, y north, z up);
+* body frame FLU (REP-103: x forward, y left, z up) everywhere inside the
+  package and on ROS topics. The seeds and PSINS use RFU bodies (x right,
+  y forward, z up); aerospace texts use FRD. Convert at the edges with the
+  matrices below;
+* attitude is the rotation body -> ENU, ``C_b_n`` (a 3x3 DCM, ``v_n = C_b_n @ v_b``)
+  or the quaternion ``q_b_n`` stored ``(x, y, z, w)`` as on ROS messages and in
+  scipy;
+* Euler angles follow REP-103: ``C_b_n = Rz(yaw) @ Ry(pitch) @ Rx(roll)``
+  (fixed axes x-y-z, roll first). With an FLU body, yaw 0 points the nose east,
+  positive yaw turns it towards north (CCW seen from above) and **positive
+  pitch is nose down**, positive roll is right side down;
+* navigation heading (human reports only) is clockwise from north in
+  [0, 360) deg: ``heading = 90 deg - yaw``;
+* PSINS attitude ``[pitch, roll, yaw]`` (RFU body, yaw CCW from north, pitch
+  nose up) relates to REP-103 by ``C_flu_enu = C_rfu_enu @ C_FLU_TO_RFU``.
+
+Shapes: functions accept a single angle triple (3,) or a stack (N, 3); DCMs are
+(3, 3) or (N, 3, 3); quaternions (4,) or (N, 4).
+"""
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+# --- fixed frame changes (vector components) --------------------------------
+#: v_flu = C_RFU_TO_FLU @ v_rfu  (right-forward-up body -> forward-left-up body)
+C_RFU_TO_FLU = np.array([[0.0, 1.0, 0.0],
+                         [-1.0, 0.0, 0.0],
+                         [0.0, 0.0, 1.0]])
+#: v_rfu = C_FLU_TO_RFU @ v_flu
+C_FLU_TO_RFU = C_RFU_TO_FLU.T
+#: v_frd = C_FLU_TO_FRD @ v_flu (and back, it is its own inverse)
+C_FLU_TO_FRD = np.diag([1.0, -1.0, -1.0])
+#: v_ned = C_ENU_TO_NED @ v_enu (and back, it is its own inverse)
+C_ENU_TO_NED = np.array([[0.0, 1.0, 0.0],
+                         [1.0, 0.0, 0.0],
+                         [0.0, 0.0, -1.0]])
+
+DEG = np.pi / 180.0
+ARCSEC = DEG / 3600.0
+ARCMIN = DEG / 60.0
+
+
+# --- small-vector algebra ----------------------------------------------------
+def skew(v):
+    """Cross-product matrix ``[v x]`` of shape (3, 3) (or (N, 3, 3)) with ``skew(a) @ b == a x b``."""
+    v = np.asarray(v, dtype=float)
+    S = np.zeros(v.shape[:-1] + (3, 3))
+    S[..., 0, 1] = -v[..., 2]
+    S[..., 0, 2] = v[..., 1]
+    S[..., 1, 0] = v[..., 2]
+    S[..., 1, 2] = -v[..., 0]
+    S[..., 2, 0] = -v[..., 1]
+    S[..., 2, 1] = v[..., 0]
+    return S
+
+
+def rotvec_to_dcm(phi):
+    """DCM ``exp([phi x])`` of a rotation vector ``phi`` (rad), shape (3,) -> (3, 3)."""
+    return Rotation.from_rotvec(phi).as_matrix()
+
+
+def dcm_to_rotvec(C):
+    """Rotation vector of a DCM, (3, 3) -> (3,) (or stacked)."""
+    return Rotation.from_matrix(C).as_rotvec()
+
+
+def orthonormalize(C):
+    """Nearest orthonormal matrix to ``C`` (polar decomposition via SVD)."""
+    U, _, Vt = np.linalg.svd(C)
+    return U @ Vt
+
+
+# --- REP-103 Euler angles ----------------------------------------------------
+def euler_to_dcm(euler):
+    """``C_b_n`` from REP-103 ``[roll, pitch, yaw]`` (rad), (3,) -> (3, 3) or (N, 3) -> (N, 3, 3)."""
+    euler = np.asarray(euler, dtype=float)
+    return Rotation.from_euler('xyz', euler).as_matrix()
+
+
+def dcm_to_euler(C_b_n):
+    """REP-103 ``[roll, pitch, yaw]`` (rad) of ``C_b_n``; yaw in (-pi, pi]."""
+    return Rotation.from_matrix(C_b_n).as_euler('xyz')
+
+
+def euler_to_quat(euler):
+    """Quaternion ``(x, y, z, w)`` body -> ENU from REP-103 Euler angles (rad)."""
+    return Rotation.from_euler('xyz', np.asarray(euler, dtype=float)).as_quat()
+
+
+def quat_to_euler(q):
+    """REP-103 Euler angles (rad) from quaternion ``(x, y, z, w)`` body -> ENU."""
+    return Rotation.from_quat(q).as_euler('xyz')
+
+
+def dcm_to_quat(C_b_n):
+    """Quaternion ``(x, y, z, w)`` of ``C_b_n``, sign chosen with w >= 0."""
+    q = Rotation.from_matrix(C_b_n).as_quat()
+    return np.where(q[..., 3:4] < 0.0, -q, q)
+
+
+def quat_to_dcm(q):
+    """``C_b_n`` of quaternion ``(x, y, z, w)``."""
+    return Rotation.from_quat(q).as_matrix()
+
+
+def euler_rates_to_w_nb_b(euler, euler_rate):
+    """Body angular rate relative to the nav frame from REP-103 Euler rates.
+
+    For ``C_b_n = Rz(y) Ry(p) Rx(r)`` the body rate is
+    ``w_nb_b = [r' - y' sin p,  p' cos r + y' cos p sin r,  -p' sin r + y' cos p cos r]``.
+
+    Parameters
+    ----------
+    euler, euler_rate : ndarray (..., 3)
+        ``[roll, pitch, yaw]`` (rad) and their time derivatives (rad/s).
+
+    Returns
+    -------
+    w_nb_b : ndarray (..., 3), rad/s, body axes.
+    """
+    euler = np.asarray(euler, dtype=float)
+    euler_rate = np.asarray(euler_rate, dtype=float)
+    r, p = euler[..., 0], euler[..., 1]
+    dr, dp, dy = euler_rate[..., 0], euler_rate[..., 1], euler_rate[..., 2]
+    sr, cr, sp, cp = np.sin(r), np.cos(r), np.sin(p), np.cos(p)
+    return np.stack([dr - dy * sp,
+                     dp * cr + dy * cp * sr,
+                     -dp * sr + dy * cp * cr], axis=-1)
+
+
+# --- navigation heading and PSINS conventions --------------------------------
+def yaw_to_heading(yaw):
+    """Navigation heading (rad, clockwise from north, [0, 2pi)) from REP-103 ENU yaw."""
+    return np.mod(np.pi / 2.0 - np.asarray(yaw, dtype=float), 2.0 * np.pi)
+
+
+def heading_to_yaw(heading):
+    """REP-103 ENU yaw (rad, CCW from east, (-pi, pi]) from navigation heading (cw from north)."""
+    return wrap_pi(np.pi / 2.0 - np.asarray(heading, dtype=float))
+
+
+def wrap_pi(a):
+    """Wrap angles to (-pi, pi]."""
+    a = np.asarray(a, dtype=float)
+    return np.pi - np.mod(np.pi - a, 2.0 * np.pi)
+
+
+def nav_to_euler(roll, pitch_up, heading):
+    """REP-103 FLU/ENU Euler angles from aviation-style roll (right down), pitch (nose up), heading (cw from N)."""
+    return np.stack(np.broadcast_arrays(roll, -np.asarray(pitch_up, dtype=float),
+                                        heading_to_yaw(heading)), axis=-1)
+
+
+def psins_att_to_dcm(att):
+    """``C_b_n`` (FLU -> ENU) from a PSINS attitude ``[pitch, roll, yaw]`` (rad, RFU body).
+
+    PSINS defines ``C_rfu_enu = Rz(yaw) Rx(pitch) Ry(roll)``.
+    """
+    att = np.asarray(att, dtype=float)
+    C_rfu_enu = Rotation.from_euler('ZXY', np.stack(
+        [att[..., 2], att[..., 0], att[..., 1]], axis=-1)).as_matrix()
+    return C_rfu_enu @ C_FLU_TO_RFU
+
+
+def dcm_to_psins_att(C_b_n):
+    """PSINS attitude ``[pitch, roll, yaw]`` (rad, RFU body) of an FLU -> ENU DCM."""
+    C_rfu_enu = np.asarray(C_b_n) @ C_RFU_TO_FLU
+    zxy = Rotation.from_matrix(C_rfu_enu).as_euler('ZXY')
+    return np.stack([zxy[..., 1], zxy[..., 2], zxy[..., 0]], axis=-1)
+
+
+def attitude_error(C_est, C_true):
+    """Small-angle attitude error ``phi`` (rad, nav axes) with ``C_est = exp(-[phi x]) C_true``.
+
+    This is seed 002 eq. 3's platform misalignment ``C~ = (I - [phi x]) C``
+    to first order, exact for large angles as a rotation vector.
+    Shapes (3, 3) -> (3,), or stacked.
+    """
+    dC = np.asarray(C_true) @ np.swapaxes(np.asarray(C_est), -1, -2)
+    return Rotation.from_matrix(dC).as_rotvec()
+
+
+def euler_error(euler_est, euler_true):
+    """Difference of Euler triples with the angle wrap removed, rad."""
+    return wrap_pi(np.asarray(euler_est) - np.asarray(euler_true))

@@ -1,0 +1,1 @@
+"""ROS 2 layer: rclpy nodes and message conversion only."""

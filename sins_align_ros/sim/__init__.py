@@ -1,0 +1,1 @@
+"""sim layer of sins_align_ros (no ROS imports)."""

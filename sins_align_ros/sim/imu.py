@@ -1,0 +1,259 @@
+"""IMU increments consistent with a trajectory, and IMU error models.
+
+Ideal increments are the exact integrals over each sample interval of the
+body angular rate ``w_ib_b = w_nb_b + C_n_b (w_ie_n + w_en_n)`` and of the
+specific force ``f_b = C_n_b (a_n + (2 w_ie_n + w_en_n) x v_n - g_n)``,
+evaluated with 4-point Gauss-Legendre quadrature (exact for polynomials of
+degree 7: round-off level at IMU rates). Earth rate, transport rate, Coriolis
+and normal gravity come from :mod:`sins_align_ros.nav.earth`, the same model
+the mechanization uses, so error-free data integrate back to the truth.
+
+Errors (:class:`ImuSpec`, datasheet units) are added to the increments:
+constant bias, white noise (angle/velocity random walk), first-order
+Gauss-Markov bias (sigma, tau), scale factor and quantization with the
+remainder carried to the next sample (as a real counter does).
+"""
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.signal import lfilter
+
+from ..nav import earth
+from ..nav.frames import DEG, euler_rates_to_w_nb_b, euler_to_dcm
+from .trajectory import PositionIntegrator
+
+DPH = DEG / 3600.0                 # deg/h -> rad/s
+DPSH = DEG / 60.0                  # deg/sqrt(h) -> rad/sqrt(s)
+UG = 1e-6 * earth.G0               # micro-g -> m/s^2
+
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(4)
+
+
+def _vec3(x):
+    return np.broadcast_to(np.asarray(x, dtype=float), (3,)).copy()
+
+
+@dataclass(frozen=True)
+class ImuSpec:
+    """IMU error parameters in datasheet units (scalars apply to all three axes).
+
+    Attributes
+    ----------
+    gyro_bias_dph : float or (3,)
+        Constant gyro bias, deg/h.
+    gyro_arw_dpsh : float
+        Angle random walk, deg/sqrt(h).
+    gyro_markov_dph, gyro_markov_tau_s : float
+        First-order Gauss-Markov bias: steady-state sigma (deg/h), correlation time (s).
+    gyro_scale_ppm : float or (3,)
+    gyro_quant_arcsec : float
+        Angle increment LSB, arcsec (0: none).
+    accel_bias_ug : float or (3,)
+        Constant accelerometer bias, micro-g.
+    accel_vrw_ug_rthz : float
+        Velocity random walk as white-noise density, micro-g/sqrt(Hz).
+    accel_markov_ug, accel_markov_tau_s : float
+    accel_scale_ppm : float or (3,)
+    accel_quant_mps : float
+        Velocity increment LSB, m/s (0: none).
+    random_bias : bool
+        Draw the constant biases per run as N(0, value^2) per axis instead of
+        using the values as given (Monte Carlo runs).
+    """
+
+    gyro_bias_dph: object = 0.0
+    gyro_arw_dpsh: float = 0.0
+    gyro_markov_dph: float = 0.0
+    gyro_markov_tau_s: float = 3600.0
+    gyro_scale_ppm: object = 0.0
+    gyro_quant_arcsec: float = 0.0
+    accel_bias_ug: object = 0.0
+    accel_vrw_ug_rthz: float = 0.0
+    accel_markov_ug: float = 0.0
+    accel_markov_tau_s: float = 3600.0
+    accel_scale_ppm: object = 0.0
+    accel_quant_mps: float = 0.0
+    random_bias: bool = False
+
+    def with_(self, **kw):
+        """A copy with some fields changed."""
+        return replace(self, **kw)
+
+    @property
+    def ideal(self):
+        """True when the spec adds no error at all."""
+        return not any(np.any(np.asarray(getattr(self, f)) != 0) for f in (
+            'gyro_bias_dph', 'gyro_arw_dpsh', 'gyro_markov_dph', 'gyro_scale_ppm',
+            'gyro_quant_arcsec', 'accel_bias_ug', 'accel_vrw_ug_rthz', 'accel_markov_ug',
+            'accel_scale_ppm', 'accel_quant_mps'))
+
+
+def ideal_increments(traj, t_grid, pos_fn):
+    """Exact angle and velocity increments over consecutive intervals of ``t_grid``.
+
+    Parameters
+    ----------
+    traj : Trajectory
+    t_grid : ndarray (N+1,)
+        Sample times; increment k covers ``[t_grid[k], t_grid[k+1]]``.
+    pos_fn : callable
+        ``pos_fn(t) -> (M, 3)`` geodetic positions valid on the grid's span.
+
+    Returns
+    -------
+    dtheta, dv : ndarray (N, 3), rad and m/s, body (FLU) axes.
+    """
+    t_grid = np.asarray(t_grid, dtype=float)
+    a, b = t_grid[:-1], t_grid[1:]
+    half = 0.5 * (b - a)
+    tq = (0.5 * (a + b))[:, None] + half[:, None] * _GL_X[None, :]
+    n, m = tq.shape
+    tf = tq.ravel()
+    kin = traj.kinematics(tf)
+    pos = pos_fn(tf)
+    lat, h = pos[:, 0], pos[:, 2]
+    C_b_n = euler_to_dcm(kin.euler)
+    w_ie = earth.w_ie_n(lat)
+    w_en = earth.w_en_n(lat, h, kin.v_n)
+    w_in = w_ie + w_en
+    w_nb_b = euler_rates_to_w_nb_b(kin.euler, kin.euler_rate)
+    w_ib_b = w_nb_b + np.einsum('kji,kj->ki', C_b_n, w_in)
+    f_n = kin.a_n + np.cross(2.0 * w_ie + w_en, kin.v_n) - earth.gravity_n(lat, h)
+    f_b = np.einsum('kji,kj->ki', C_b_n, f_n)
+    wts = (half[:, None] * _GL_W[None, :])[..., None]
+    dtheta = (w_ib_b.reshape(n, m, 3) * wts).sum(axis=1)
+    dv = (f_b.reshape(n, m, 3) * wts).sum(axis=1)
+    return dtheta, dv
+
+
+class ImuErrors:
+    """Stateful error generator for a stream of increments (one per IMU).
+
+    Parameters
+    ----------
+    spec : ImuSpec
+    rng : numpy.random.Generator
+    """
+
+    def __init__(self, spec, rng):
+        self.spec = spec
+        self.rng = rng
+        gb = _vec3(spec.gyro_bias_dph) * DPH
+        ab = _vec3(spec.accel_bias_ug) * UG
+        if spec.random_bias:
+            gb = gb * rng.standard_normal(3)
+            ab = ab * rng.standard_normal(3)
+        #: the constant biases actually applied, rad/s and m/s^2 (the truth)
+        self.gyro_bias = gb
+        self.accel_bias = ab
+        self._gm = spec.gyro_markov_dph * DPH * rng.standard_normal(3)
+        self._am = spec.accel_markov_ug * UG * rng.standard_normal(3)
+        self._gq = np.zeros(3)
+        self._aq = np.zeros(3)
+
+    @staticmethod
+    def _markov(x0, sigma, tau, dt, rng, n):
+        """Exact discretisation of a first-order Gauss-Markov process, (n, 3)."""
+        if sigma == 0.0:
+            return np.zeros((n, 3)), x0
+        phi = np.exp(-dt / tau)
+        w = sigma * np.sqrt(1.0 - phi * phi) * rng.standard_normal((n, 3))
+        out, _ = lfilter([1.0], [1.0, -phi], w, axis=0, zi=(phi * x0)[None, :])
+        return out, out[-1].copy()
+
+    @staticmethod
+    def _quantize(x, lsb, carry):
+        """Quantize increments to ``lsb`` keeping the remainder, like an integrating counter."""
+        if lsb <= 0.0:
+            return x, carry
+        total = np.cumsum(x, axis=0) + carry
+        counts = np.floor(total / lsb + 0.5)
+        out = np.diff(np.vstack([np.zeros((1, 3)), counts]), axis=0) * lsb
+        return out, total[-1] - counts[-1] * lsb
+
+    def apply(self, dtheta, dv, dt):
+        """Return corrupted copies of ideal increments (N, 3) sampled every ``dt`` s."""
+        s, rng, n = self.spec, self.rng, len(dtheta)
+        gm, self._gm = self._markov(self._gm, s.gyro_markov_dph * DPH,
+                                    s.gyro_markov_tau_s, dt, rng, n)
+        am, self._am = self._markov(self._am, s.accel_markov_ug * UG,
+                                    s.accel_markov_tau_s, dt, rng, n)
+        g_white = s.gyro_arw_dpsh * DPSH * np.sqrt(dt) * rng.standard_normal((n, 3))
+        a_white = s.accel_vrw_ug_rthz * UG * np.sqrt(dt) * rng.standard_normal((n, 3))
+        dth = (dtheta * (1.0 + _vec3(s.gyro_scale_ppm) * 1e-6)
+               + (self.gyro_bias + gm) * dt + g_white)
+        dvel = (dv * (1.0 + _vec3(s.accel_scale_ppm) * 1e-6)
+                + (self.accel_bias + am) * dt + a_white)
+        dth, self._gq = self._quantize(dth, s.gyro_quant_arcsec * DEG / 3600.0, self._gq)
+        dvel, self._aq = self._quantize(dvel, s.accel_quant_mps, self._aq)
+        return dth, dvel
+
+
+@dataclass
+class ImuChunk:
+    """A block of simulated IMU samples with the truth at each sample time.
+
+    ``t`` (N,) is the end of each increment's interval; ``dtheta``, ``dv`` (N, 3)
+    body FLU; truth: ``euler`` (N, 3) REP-103, ``v_n`` (N, 3) ENU, ``pos`` (N, 3)
+    ``[lat, lon, h]``.
+    """
+
+    t: np.ndarray
+    dtheta: np.ndarray
+    dv: np.ndarray
+    euler: np.ndarray
+    v_n: np.ndarray
+    pos: np.ndarray
+    extra: dict = field(default_factory=dict)
+
+
+class ImuSimulator:
+    """Streams IMU increments along a trajectory, chunk by chunk, deterministically.
+
+    Parameters
+    ----------
+    traj : Trajectory
+    spec : ImuSpec
+    rate_hz : float
+    seed : int
+        Seeds the error generator; the same seed gives the same stream.
+    """
+
+    def __init__(self, traj, spec, rate_hz, seed=0):
+        self.traj = traj
+        self.spec = spec
+        self.dt = 1.0 / float(rate_hz)
+        self.rng = np.random.default_rng(seed)
+        self.errors = ImuErrors(spec, self.rng)
+        self.positions = PositionIntegrator(traj)
+        self.k = 0   # samples produced so far
+
+    def truth_at(self, t, pos_fn):
+        """Truth (euler, v_n, pos) at times ``t`` inside the current chunk."""
+        kin = self.traj.kinematics(t)
+        return kin.euler, kin.v_n, pos_fn(t)
+
+    def initial_truth(self):
+        """Truth at t = 0: ``(euler (3,), v_n (3,), pos (3,))``."""
+        kin = self.traj.kinematics(0.0)
+        return kin.euler[0], kin.v_n[0], self.traj.initial_position
+
+    def next_chunk(self, n):
+        """The next ``n`` samples as an :class:`ImuChunk`."""
+        k0 = self.k
+        t_grid = (k0 + np.arange(n + 1)) * self.dt
+        pos_fn = self.positions.advance(t_grid[-1])
+        dtheta, dv = ideal_increments(self.traj, t_grid, pos_fn)
+        if not self.spec.ideal:
+            dtheta, dv = self.errors.apply(dtheta, dv, self.dt)
+        t = t_grid[1:]
+        euler, v_n, pos = self.truth_at(t, pos_fn)
+        self.k += n
+        return ImuChunk(t=t, dtheta=dtheta, dv=dv, euler=euler, v_n=v_n, pos=pos,
+                        extra={'pos_fn': pos_fn})
+
+
+def simulate(traj, spec, rate_hz, duration, seed=0):
+    """Convenience: the whole ``duration`` (s) as one :class:`ImuChunk`."""
+    sim = ImuSimulator(traj, spec, rate_hz, seed)
+    return sim.next_chunk(int(round(duration * rate_hz)))

@@ -1,0 +1,92 @@
+"""Frame and attitude conventions (REP-103, navigation heading, PSINS, RFU/FRD/NED)."""
+import numpy as np
+import pytest
+
+from sins_align_ros.nav import frames as fr
+from sins_align_ros.nav.frames import DEG
+
+
+def nose(euler):
+    """The body x axis (forward) in ENU."""
+    return fr.euler_to_dcm(euler) @ np.array([1.0, 0.0, 0.0])
+
+
+def test_rep103_yaw_zero_points_east_and_positive_yaw_turns_north():
+    assert nose([0, 0, 0]) == pytest.approx([1, 0, 0])
+    assert nose([0, 0, 90 * DEG]) == pytest.approx([0, 1, 0], abs=1e-12)
+
+
+def test_rep103_positive_pitch_is_nose_down_and_positive_roll_right_side_down():
+    assert nose([0, 10 * DEG, 0])[2] < 0
+    left = fr.euler_to_dcm([10 * DEG, 0, 0]) @ np.array([0.0, 1.0, 0.0])
+    assert left[2] > 0   # left side up = right side down
+
+
+def test_euler_dcm_quaternion_round_trips():
+    rng = np.random.default_rng(4)
+    e = rng.uniform([-np.pi, -1.5, -np.pi], [np.pi, 1.5, np.pi], size=(100, 3))
+    assert fr.dcm_to_euler(fr.euler_to_dcm(e)) == pytest.approx(e, abs=1e-12)
+    assert fr.quat_to_euler(fr.euler_to_quat(e)) == pytest.approx(e, abs=1e-12)
+    q = fr.dcm_to_quat(fr.euler_to_dcm(e))
+    assert np.all(q[:, 3] >= 0)
+    assert fr.quat_to_dcm(q) == pytest.approx(fr.euler_to_dcm(e), abs=1e-12)
+
+
+def test_navigation_heading_is_clockwise_from_north():
+    assert fr.yaw_to_heading(0.0) == pytest.approx(np.pi / 2)          # east
+    assert fr.yaw_to_heading(np.pi / 2) == pytest.approx(0.0)          # north
+    assert fr.yaw_to_heading(-np.pi / 2) == pytest.approx(np.pi)       # south
+    h = np.linspace(0, 2 * np.pi, 13)[:-1]
+    assert fr.yaw_to_heading(fr.heading_to_yaw(h)) == pytest.approx(h)
+    e = fr.nav_to_euler(0.0, 5 * DEG, 45 * DEG)
+    assert nose(e) == pytest.approx([np.sin(45 * DEG) * np.cos(5 * DEG),
+                                     np.cos(45 * DEG) * np.cos(5 * DEG), np.sin(5 * DEG)])
+
+
+def test_psins_attitude_conversion():
+    # PSINS yaw is CCW from north with an RFU body: REP-103 yaw = PSINS yaw + 90 deg
+    C = fr.psins_att_to_dcm(np.array([0.0, 0.0, -90.6]) * DEG)
+    assert fr.dcm_to_euler(C)[2] == pytest.approx(-0.6 * DEG)
+    # PSINS pitch is nose up: REP-103 pitch (nose down) has the opposite sign
+    C = fr.psins_att_to_dcm(np.array([3.0, 2.0, 30.0]) * DEG)
+    e = fr.dcm_to_euler(C)
+    assert e[1] == pytest.approx(-3.0 * DEG, abs=0.05 * DEG)
+    att = np.array([3.0, -2.0, 130.0]) * DEG
+    assert fr.dcm_to_psins_att(fr.psins_att_to_dcm(att)) == pytest.approx(att)
+
+
+def test_fixed_frame_changes():
+    v_rfu = np.array([1.0, 2.0, 3.0])       # right, forward, up
+    assert fr.C_RFU_TO_FLU @ v_rfu == pytest.approx([2.0, -1.0, 3.0])
+    assert fr.C_FLU_TO_FRD @ np.array([2.0, -1.0, 3.0]) == pytest.approx([2.0, 1.0, -3.0])
+    assert fr.C_ENU_TO_NED @ np.array([1.0, 2.0, 3.0]) == pytest.approx([2.0, 1.0, -3.0])
+    for C in (fr.C_RFU_TO_FLU, fr.C_FLU_TO_FRD, fr.C_ENU_TO_NED):
+        assert C @ C.T == pytest.approx(np.eye(3))
+
+
+def test_euler_rates_to_body_rate_matches_finite_difference():
+    def euler(t):
+        return np.array([0.3 * np.sin(t), -0.2 * np.cos(1.3 * t), 1.0 + 0.5 * t])
+
+    def euler_rate(t):
+        return np.array([0.3 * np.cos(t), 0.26 * np.sin(1.3 * t), 0.5])
+
+    t, h = 0.7, 1e-6
+    C0, C1 = fr.euler_to_dcm(euler(t - h)), fr.euler_to_dcm(euler(t + h))
+    w_fd = fr.dcm_to_rotvec(C0.T @ C1) / (2 * h)       # C_b_n' = C_b_n [w_nb_b x]
+    w = fr.euler_rates_to_w_nb_b(euler(t), euler_rate(t))
+    assert w == pytest.approx(w_fd, abs=1e-8)
+
+
+def test_attitude_error_is_seed002_eq3_platform_misalignment():
+    C = fr.euler_to_dcm([0.1, -0.2, 1.0])
+    phi = np.array([1e-3, -2e-3, 5e-3])
+    C_est = (np.eye(3) - fr.skew(phi)) @ C
+    assert fr.attitude_error(fr.orthonormalize(C_est), C) == pytest.approx(phi, rel=1e-4)
+    C_est = fr.rotvec_to_dcm(-phi) @ C
+    assert fr.attitude_error(C_est, C) == pytest.approx(phi, rel=1e-12)
+
+
+def test_wrap_pi():
+    assert fr.wrap_pi(np.array([3 * np.pi, -3 * np.pi + 0.1, 0.2])) == pytest.approx(
+        [np.pi, -np.pi + 0.1, 0.2])
