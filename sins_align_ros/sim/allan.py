@@ -57,6 +57,11 @@ def adev_markov(sigma, tc, tau):
     return np.sqrt(avar)
 
 
-def adev_quantization(Q, tau):
-    """Allan deviation of quantization noise with increment LSB ``Q``: ``sqrt(3) Q / tau``."""
-    return np.sqrt(3.0) * Q / np.asarray(tau, dtype=float)
+def adev_quantization(lsb, tau):
+    """Allan deviation of quantization of increments with step ``lsb``.
+
+    IEEE Std 952-1997 C.2: ``sqrt(3) Q / tau`` with the quantization coefficient
+    ``Q = lsb / sqrt(12)`` (uniform angle error), i.e. ``lsb / (2 tau)``. Holds
+    when the signal dithers over several LSBs between samples.
+    """
+    return np.sqrt(3.0) * (lsb / np.sqrt(12.0)) / np.asarray(tau, dtype=float)

@@ -1,0 +1,111 @@
+"""Strapdown mechanization against simulator truth and closed-form error growth."""
+import numpy as np
+import pytest
+
+from sins_align_ros.nav import earth
+from sins_align_ros.nav.frames import ARCSEC, DEG, attitude_error, euler_to_dcm, rotvec_to_dcm
+from sins_align_ros.nav.mechanization import MechanizationOptions, Strapdown
+from sins_align_ros.sim.imu import ImuSimulator, ImuSpec
+from sins_align_ros.sim.presets import SEED000_SWAY, Segment, scenario
+from sins_align_ros.sim.trajectory import Sway, Trajectory
+
+TRAJECTORIES = {
+    'static': Trajectory(34.0, 108.0, 100.0, heading_deg=30.0, pitch_deg=1.0, roll_deg=-2.0),
+    'sway': Trajectory(45.7796, 126.6705, 0.0, heading_deg=45.0,
+                       sway=Sway(**{**SEED000_SWAY.__dict__, 'heave_amp': 1.0,
+                                    'heave_period': 8.0, 'surge_amp': 0.5,
+                                    'surge_period': 9.0})),
+    'underway': scenario('ship_underway').trajectory,
+    'flight': scenario('seed001_flight').trajectory,
+}
+
+
+def integrate(traj, seconds=600.0, rate=100.0, options=MechanizationOptions()):
+    sim = ImuSimulator(traj, ImuSpec(), rate)
+    e0, v0, p0 = sim.initial_truth()
+    chunk = sim.next_chunk(int(seconds * rate))
+    nav = Strapdown(euler_to_dcm(e0), v0, *p0, options=options)
+    out = nav.run(chunk.dtheta, chunk.dv, 1.0 / rate)
+    return chunk, out
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('name', list(TRAJECTORIES))
+def test_error_free_imu_integrates_back_to_truth(name):
+    """Issue 2: 600 s at 100 Hz, attitude < 2 arcsec, position < 1 m underway."""
+    chunk, out = integrate(TRAJECTORIES[name])
+    att = attitude_error(out['C_b_n'], euler_to_dcm(chunk.euler))
+    assert np.abs(att).max() < 2 * ARCSEC
+    pos_err = earth.local_offset_m(chunk.pos[:, 0], chunk.pos[:, 1], chunk.pos[:, 2],
+                                   out['pos'][:, 0], out['pos'][:, 1], out['pos'][:, 2])
+    assert np.abs(pos_err).max() < 1.0
+    assert np.abs(out['v_n'] - chunk.v_n).max() < 1e-3
+
+
+def test_underway_truth_really_moves():
+    chunk, _ = integrate(TRAJECTORIES['underway'], seconds=600.0, rate=50.0)
+    d = earth.local_offset_m(*chunk.pos[0], *chunk.pos[-1].T)
+    assert np.hypot(d[0], d[1]) > 2000.0     # several km: the position check is meaningful
+
+
+def test_stationary_mode_tilt_error_grows_velocity_as_seed002_eq16():
+    """A tilt error gives dV_E' = -g phi_N, dV_N' = g phi_E (seed 002 eq. 16).
+
+    The heading error couples in through phi_E' = -w_N phi_U (eq. 16 row 3), so
+    v_N(T) = g (phi_E T - w_N phi_U T^2 / 2) to first order.
+    """
+    traj = Trajectory(34.0, 75.0, 100.0, heading_deg=0.0)
+    sim = ImuSimulator(traj, ImuSpec(), 100.0)
+    e0, v0, p0 = sim.initial_truth()
+    chunk = sim.next_chunk(1000)
+    phi = np.array([2e-4, -1e-4, 3e-3])
+    C0 = rotvec_to_dcm(-phi) @ euler_to_dcm(e0)
+    nav = Strapdown(C0, v0, *p0, options=MechanizationOptions.stationary())
+    out = nav.run(chunk.dtheta, chunk.dv, 0.01)
+    g = earth.gravity(p0[0], p0[2])
+    t = chunk.t[-1]
+    # exact initial specific-force error of the tilted DCM, then eq. 16 to first order
+    f_err = (rotvec_to_dcm(-phi) - np.eye(3)) @ np.array([0.0, 0.0, g])
+    assert f_err[0] == pytest.approx(-g * phi[1], rel=0.02)
+    assert f_err[1] == pytest.approx(g * phi[0], rel=0.02)
+    w_N = earth.w_ie_n(p0[0])[1]
+    assert out['v_n'][-1, 0] == pytest.approx(f_err[0] * t, rel=1e-3)
+    assert out['v_n'][-1, 1] == pytest.approx(f_err[1] * t - 0.5 * g * w_N * phi[2] * t * t,
+                                              rel=1e-3)
+    assert np.all(out['v_n'][:, 2] == 0.0)                # vertical held (sec. 3)
+    assert np.all(out['pos'] == p0)                       # position fixed (Table 1)
+
+
+def test_stationary_mode_without_coriolis_matches_full_mode_on_still_base():
+    traj = Trajectory(34.0, 75.0, 100.0, heading_deg=10.0)
+    _, full = integrate(traj, seconds=60.0)
+    _, stat = integrate(traj, seconds=60.0, options=MechanizationOptions.stationary())
+    assert np.abs(stat['v_n']).max() < 1e-6
+    err = attitude_error(stat['C_b_n'][-1], full['C_b_n'][-1])
+    assert np.abs(err).max() < 0.01 * ARCSEC
+
+
+def test_coning_correction_matters_under_coning_motion():
+    """Pure coning: without the (1/12) dtheta_prev x dtheta term the drift is far larger."""
+    traj = Trajectory(0.0, 0.0, 0.0, sway=Sway(roll_amp=5.0, roll_period=0.5,
+                                               pitch_amp=5.0, pitch_period=0.5,
+                                               pitch_phase=np.pi / 2))
+    chunk, out = integrate(traj, seconds=60.0, rate=100.0)
+    err_full = np.abs(attitude_error(out['C_b_n'][-1], euler_to_dcm(chunk.euler[-1]))).max()
+    sim = ImuSimulator(traj, ImuSpec(), 100.0)
+    e0, v0, p0 = sim.initial_truth()
+    chunk = sim.next_chunk(6000)
+    C = euler_to_dcm(e0)
+    for k in range(len(chunk.t)):       # attitude from plain increments, no coning term
+        w = earth.w_ie_n(p0[0]) * 0.01
+        C = rotvec_to_dcm(-w) @ C @ rotvec_to_dcm(chunk.dtheta[k])
+    err_plain = np.abs(attitude_error(C, euler_to_dcm(chunk.euler[-1]))).max()
+    assert err_plain > 20 * err_full
+    assert err_full < 10 * ARCSEC      # 2 Hz, 5 deg coning: far harsher than any ship
+
+
+def test_segment_rejects_bad_ramp():
+    with pytest.raises(ValueError):
+        Segment(10.0, ramp=6.0).ramp_s
+    assert Segment(10.0).ramp_s == 2.0
+    assert DEG > 0

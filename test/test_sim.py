@@ -1,0 +1,203 @@
+"""Simulator: physics of the ideal IMU, error models (Allan deviation), GNSS, presets."""
+import numpy as np
+import pytest
+
+from sins_align_ros.nav import earth
+from sins_align_ros.nav.frames import DEG, euler_to_dcm
+from sins_align_ros.sim.allan import (adev_markov, adev_quantization, adev_white,
+                                      allan_deviation)
+from sins_align_ros.sim.gnss import GnssErrors, GnssSpec
+from sins_align_ros.sim.imu import DPH, DPSH, UG, ImuErrors, ImuSimulator, ImuSpec, simulate
+from sins_align_ros.sim.presets import SCENARIOS, SENSOR_GRADES, scenario
+from sins_align_ros.sim.scenario import ScenarioStream
+from sins_align_ros.sim.trajectory import Trajectory
+
+LAT = 34.0
+
+
+def test_static_level_imu_reads_gravity_up_and_earth_rate():
+    traj = Trajectory(LAT, 108.0, 0.0, heading_deg=0.0)       # nose north
+    c = simulate(traj, ImuSpec(), 100.0, 10.0)
+    f = c.dv.mean(axis=0) / 0.01
+    w = c.dtheta.mean(axis=0) / 0.01
+    g = earth.gravity(LAT * DEG, 0.0)
+    assert f == pytest.approx([0.0, 0.0, g], abs=1e-9)        # +g on z (FLU, REP-145)
+    assert np.linalg.norm(w) == pytest.approx(earth.OMEGA_IE, rel=1e-9)
+    # nose north: forward gyro sees the north component, up gyro the vertical one
+    assert w == pytest.approx([earth.OMEGA_IE * np.cos(LAT * DEG), 0.0,
+                               earth.OMEGA_IE * np.sin(LAT * DEG)], abs=1e-13)
+
+
+def test_tilted_static_imu_rotates_gravity_into_body():
+    traj = Trajectory(LAT, 108.0, 0.0, heading_deg=70.0, pitch_deg=3.0, roll_deg=-4.0)
+    c = simulate(traj, ImuSpec(), 100.0, 2.0)
+    C = euler_to_dcm(c.euler[0])
+    g = earth.gravity(LAT * DEG, 0.0)
+    assert c.dv.mean(axis=0) / 0.01 == pytest.approx(C.T @ [0, 0, g], abs=1e-9)
+
+
+def test_constant_biases_and_scale_factor_appear_in_the_increments():
+    spec = ImuSpec(gyro_bias_dph=[1.0, -2.0, 3.0], accel_bias_ug=[100.0, 0.0, -50.0],
+                   accel_scale_ppm=1000.0)
+    traj = Trajectory(LAT, 108.0, 0.0)
+    ideal = simulate(traj, ImuSpec(), 100.0, 5.0)
+    real = simulate(traj, spec, 100.0, 5.0)
+    dw = (real.dtheta - ideal.dtheta).mean(axis=0) / 0.01
+    assert dw == pytest.approx(np.array([1.0, -2.0, 3.0]) * DPH, rel=1e-9)
+    df = (real.dv - ideal.dv).mean(axis=0) / 0.01
+    g = earth.gravity(LAT * DEG, 0.0)
+    assert df == pytest.approx(np.array([100.0, 0.0, -50.0]) * UG + [0, 0, 1e-3 * g],
+                               rel=1e-9)
+
+
+def _noise(spec, n, dt, seed=1):
+    e = ImuErrors(spec, np.random.default_rng(seed))
+    return e.apply(np.zeros((n, 3)), np.zeros((n, 3)), dt)
+
+
+@pytest.mark.parametrize('tau_s', [0.1, 1.0, 10.0])
+def test_allan_deviation_of_white_noise_matches_arw_and_vrw(tau_s):
+    """Issue 2: Allan deviation within 10% of the configured ARW and VRW."""
+    dt, n = 0.01, 360_000
+    spec = ImuSpec(gyro_arw_dpsh=0.05, accel_vrw_ug_rthz=50.0)
+    dth, dv = _noise(spec, n, dt)
+    m = [int(round(tau_s / dt))]
+    tau, ad_g = allan_deviation(dth / dt, dt, m)
+    _, ad_a = allan_deviation(dv / dt, dt, m)
+    assert ad_g[0] == pytest.approx(adev_white(0.05 * DPSH, tau[0]), rel=0.10)
+    assert ad_a[0] == pytest.approx(adev_white(50.0 * UG, tau[0]), rel=0.10)
+    # ARW read off at tau = 1 s in datasheet units
+    if tau_s == 1.0:
+        assert ad_g[0].mean() / DPSH == pytest.approx(0.05, rel=0.10)
+        assert ad_a[0].mean() / UG == pytest.approx(50.0, rel=0.10)
+
+
+def test_allan_deviation_of_markov_bias_matches_closed_form():
+    dt, n = 0.1, 400_000                       # 40000 s = 4000 correlation times
+    spec = ImuSpec(gyro_markov_dph=1.0, gyro_markov_tau_s=10.0,
+                   accel_markov_ug=200.0, accel_markov_tau_s=10.0)
+    dth, dv = _noise(spec, n, dt, seed=2)
+    tau, ad_g = allan_deviation(dth / dt, dt, [10, 100, 1000])
+    _, ad_a = allan_deviation(dv / dt, dt, [10, 100, 1000])
+    assert ad_g.mean(axis=1) == pytest.approx(adev_markov(1.0 * DPH, 10.0, tau), rel=0.10)
+    assert ad_a.mean(axis=1) == pytest.approx(adev_markov(200 * UG, 10.0, tau), rel=0.10)
+
+
+def test_quantization_keeps_the_remainder_and_has_its_allan_signature():
+    dt, n = 0.01, 200_000
+    q = 1.0                                              # arcsec LSB
+    arw = 0.08                                           # dithers the counter over LSBs
+    spec = ImuSpec(gyro_quant_arcsec=q, gyro_arw_dpsh=arw)
+    dth, _ = _noise(spec, n, dt, seed=3)
+    lsb = q * DEG / 3600
+    assert np.allclose(dth / lsb, np.round(dth / lsb))   # integer counts
+    tau, ad = allan_deviation(dth / dt, dt, [1, 2, 4])
+    white = adev_white(arw * DPSH, tau)
+    expected = np.sqrt(adev_quantization(lsb, tau) ** 2 + white ** 2)
+    assert ad.mean(axis=1) == pytest.approx(expected, rel=0.05)
+    assert ad[0].mean() > 1.3 * white[0]         # white noise alone would not explain it
+    # the carried remainder keeps the integrated angle within one LSB of the true one
+    e = ImuErrors(ImuSpec(gyro_quant_arcsec=q), np.random.default_rng(0))
+    ideal = np.full((1000, 3), 0.37 * lsb)
+    out, _ = e.apply(ideal, np.zeros((1000, 3)), dt)
+    assert np.abs(out.sum(axis=0) - ideal.sum(axis=0)).max() <= lsb
+
+
+def test_random_bias_draws_per_run_and_is_seeded():
+    spec = ImuSpec(gyro_bias_dph=0.01, accel_bias_ug=100.0, random_bias=True)
+    a = ImuErrors(spec, np.random.default_rng(5))
+    b = ImuErrors(spec, np.random.default_rng(5))
+    c = ImuErrors(spec, np.random.default_rng(6))
+    assert np.array_equal(a.gyro_bias, b.gyro_bias)
+    assert not np.array_equal(a.gyro_bias, c.gyro_bias)
+    biases = np.array([ImuErrors(spec, np.random.default_rng(s)).accel_bias
+                       for s in range(2000)])
+    assert biases.std() / UG == pytest.approx(100.0, rel=0.05)
+
+
+def test_streaming_in_chunks_equals_one_block_and_is_deterministic():
+    sc = scenario('ship_underway')
+    one = ImuSimulator(sc.trajectory, sc.imu, 100.0, seed=9).next_chunk(3000)
+    sim = ImuSimulator(sc.trajectory, sc.imu, 100.0, seed=9)
+    parts = [sim.next_chunk(n) for n in (700, 1300, 1000)]
+    ideal_one = ImuSimulator(sc.trajectory, ImuSpec(), 100.0).next_chunk(3000)
+    sim_i = ImuSimulator(sc.trajectory, ImuSpec(), 100.0)
+    ideal_parts = np.vstack([sim_i.next_chunk(n).dtheta for n in (700, 1300, 1000)])
+    assert np.abs(ideal_parts - ideal_one.dtheta).max() < 1e-15
+    assert np.array_equal(np.concatenate([p.t for p in parts]), one.t)
+    assert np.abs(np.vstack([p.pos for p in parts]) - one.pos).max() < 1e-12
+    # noise draws differ in order between chunkings, but the statistics and seed do not
+    again = ImuSimulator(sc.trajectory, sc.imu, 100.0, seed=9).next_chunk(3000)
+    assert np.array_equal(again.dtheta, one.dtheta)
+
+
+def test_gnss_white_and_markov_errors_have_configured_sigma():
+    spec = GnssSpec(pos_sigma_h=2.0, pos_sigma_v=3.0, vel_sigma=0.1,
+                    pos_markov_sigma=1.0, pos_markov_tau_s=50.0)
+    g = GnssErrors(spec, np.random.default_rng(1))
+    n = 20000
+    t = np.arange(n, dtype=float)
+    pos = np.tile([LAT * DEG, 2.0, 10.0], (n, 1))
+    ep = g.measure(t, pos, np.zeros((n, 3)))
+    assert ep.pos_err_m.std(axis=0) == pytest.approx(spec.pos_sigma, rel=0.08)
+    assert ep.v_n.std(axis=0) == pytest.approx([0.1] * 3, rel=0.05)
+    # the Markov part is correlated: lag-1 autocorrelation of E error ~ 1/(4+1) * e^{-1/50}
+    e = ep.pos_err_m[:, 0]
+    r1 = np.corrcoef(e[:-1], e[1:])[0, 1]
+    assert r1 == pytest.approx(np.exp(-1 / 50) * 1.0 / 5.0, abs=0.03)
+    # reported covariance is the total variance; measured lat/lon carry the error
+    R_M, _ = earth.radii(LAT * DEG)
+    assert (ep.lat - pos[:, 0]) * (R_M + 10.0) == pytest.approx(ep.pos_err_m[:, 1], abs=1e-6)
+
+
+def test_gnss_outages_and_bernoulli_outliers():
+    spec = GnssSpec(pos_sigma_h=1.0, outages=((100.0, 200.0),), outlier_prob=0.05,
+                    outlier_scale=20.0)
+    g = GnssErrors(spec, np.random.default_rng(2))
+    n = 10000
+    t = np.arange(n, dtype=float)
+    ep = g.measure(t, np.tile([0.5, 0.5, 0.0], (n, 1)), np.zeros((n, 3)))
+    assert not ep.fix[(t >= 100) & (t < 200)].any()
+    assert ep.fix[(t < 100) | (t >= 200)].all()
+    assert ep.outlier.mean() == pytest.approx(0.05, abs=0.01)
+    big = np.abs(ep.pos_err_m[:, 0]) > 5.0
+    assert big[~ep.outlier].mean() < 1e-3
+    assert ep.pos_err_m[ep.outlier, 0].std() == pytest.approx(20.0, rel=0.1)
+
+
+@pytest.mark.parametrize('name', SCENARIOS)
+def test_every_scenario_preset_runs(name):
+    sc = scenario(name)
+    st = ScenarioStream(sc, seed=1)
+    b = st.next_block(int(2 * sc.imu_rate_hz))
+    assert np.all(np.isfinite(b.imu.dtheta)) and np.all(np.isfinite(b.imu.dv))
+    assert (b.gnss is None) == (sc.gnss is None)
+    if b.gnss is not None:
+        assert len(b.gnss.t) == 2
+    assert sc.description
+
+
+def test_scenario_overrides_and_errors():
+    assert scenario('static_navigation', duration=5.0).duration == 5.0
+    with pytest.raises(ValueError, match='unknown scenario'):
+        scenario('nope')
+    with pytest.raises(ValueError, match='no field'):
+        scenario('static_navigation', bogus=1)
+
+
+def test_seed002_grade_matches_paper():
+    s = SENSOR_GRADES['navigation']
+    assert (s.gyro_bias_dph, s.gyro_arw_dpsh, s.accel_bias_ug, s.accel_vrw_ug_rthz) == (
+        0.01, 0.001, 100.0, 10.0)
+    sc = scenario('seed002_5deg')
+    assert sc.trajectory.lat_deg == 34.0 and sc.duration == 600.0
+    assert sc.misalignment_deg == (5, 5, 5)
+
+
+def test_seed000_profile_reaches_plausible_ship_speed():
+    sc = scenario('seed000_case1')
+    kin = sc.trajectory.kinematics(np.arange(0.0, sc.duration, 0.05))
+    speed = np.hypot(kin.v_n[:, 0], kin.v_n[:, 1])
+    assert speed[0] == pytest.approx(5 * 1852 / 3600, rel=1e-6)
+    assert 8.0 < speed.max() < 15.0                     # about 16-29 kn, not 1400 m/s
+    assert np.linalg.norm(kin.a_n, axis=1).max() == pytest.approx(0.1 * 9.80665, rel=0.01)
