@@ -47,7 +47,7 @@ def radii(lat):
 
 
 def gravity(lat, h):
-    """Magnitude of normal gravity (m/s^2) at latitude ``lat`` (rad), height ``h`` (m).
+    """Return normal gravity (m/s^2) at latitude ``lat`` (rad) and height ``h`` (m).
 
     Somigliana's closed form on the ellipsoid plus the second-order free-air
     correction in height (TR8350.2 eq. 4-1 and 4-3).
@@ -58,7 +58,7 @@ def gravity(lat, h):
 
 
 def gravity_n(lat, h):
-    """Normal gravity vector in ENU, shape (3,) or (N, 3): ``[0, 0, -g]``."""
+    """Return the normal gravity vector in ENU, shape (3,) or (N, 3): ``[0, 0, -g]``."""
     g = np.asarray(gravity(lat, h), dtype=float)
     out = np.zeros(g.shape + (3,))
     out[..., 2] = -g

@@ -46,7 +46,10 @@ ARCMIN = DEG / 60.0
 
 # --- small-vector algebra ----------------------------------------------------
 def skew(v):
-    """Cross-product matrix ``[v x]`` of shape (3, 3) (or (N, 3, 3)) with ``skew(a) @ b == a x b``."""
+    """Return the cross-product matrix ``[v x]``, (3, 3) or (N, 3, 3).
+
+    ``skew(a) @ b == np.cross(a, b)``.
+    """
     v = np.asarray(v, dtype=float)
     S = np.zeros(v.shape[:-1] + (3, 3))
     S[..., 0, 1] = -v[..., 2]
@@ -76,7 +79,7 @@ def orthonormalize(C):
 
 # --- REP-103 Euler angles ----------------------------------------------------
 def euler_to_dcm(euler):
-    """``C_b_n`` from REP-103 ``[roll, pitch, yaw]`` (rad), (3,) -> (3, 3) or (N, 3) -> (N, 3, 3)."""
+    """``C_b_n`` from REP-103 ``[roll, pitch, yaw]`` (rad); (3,) -> (3, 3), (N, 3) -> (N, 3, 3)."""
     euler = np.asarray(euler, dtype=float)
     return Rotation.from_euler('xyz', euler).as_matrix()
 
@@ -150,7 +153,7 @@ def wrap_pi(a):
 
 
 def nav_to_euler(roll, pitch_up, heading):
-    """REP-103 FLU/ENU Euler angles from aviation-style roll (right down), pitch (nose up), heading (cw from N)."""
+    """REP-103 Euler angles from roll (right side down), pitch (nose up), heading (cw from N)."""
     return np.stack(np.broadcast_arrays(roll, -np.asarray(pitch_up, dtype=float),
                                         heading_to_yaw(heading)), axis=-1)
 

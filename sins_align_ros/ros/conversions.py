@@ -46,5 +46,5 @@ def diag_cov(n, diag):
 
 
 def finite(*values):
-    """True if every value is a finite float."""
+    """Return True if every value is a finite float."""
     return all(math.isfinite(v) for v in values)

@@ -22,7 +22,7 @@ class Param:
     read_only: bool = False
 
     def descriptor(self):
-        """The rcl ParameterDescriptor with type, range and constraint text."""
+        """Build the rcl ParameterDescriptor with type, range and constraint text."""
         d = ParameterDescriptor(name=self.name, description=self.description,
                                 read_only=self.read_only)
         if isinstance(self.default, bool):

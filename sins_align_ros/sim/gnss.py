@@ -47,7 +47,7 @@ class GnssSpec:
     outlier_scale: float = 10.0
 
     def with_(self, **kw):
-        """A copy with some fields changed."""
+        """Return a copy with some fields changed."""
         return replace(self, **kw)
 
     @property

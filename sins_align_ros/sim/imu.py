@@ -76,7 +76,7 @@ class ImuSpec:
     random_bias: bool = False
 
     def with_(self, **kw):
-        """A copy with some fields changed."""
+        """Return a copy with some fields changed."""
         return replace(self, **kw)
 
     @property
@@ -239,7 +239,7 @@ class ImuSimulator:
         return kin.euler[0], kin.v_n[0], self.traj.initial_position
 
     def next_chunk(self, n):
-        """The next ``n`` samples as an :class:`ImuChunk`."""
+        """Simulate the next ``n`` samples as an :class:`ImuChunk`."""
         k0 = self.k
         t_grid = (k0 + np.arange(n + 1)) * self.dt
         pos_fn = self.positions.advance(t_grid[-1])
@@ -254,6 +254,6 @@ class ImuSimulator:
 
 
 def simulate(traj, spec, rate_hz, duration, seed=0):
-    """Convenience: the whole ``duration`` (s) as one :class:`ImuChunk`."""
+    """Simulate the whole ``duration`` (s) as one :class:`ImuChunk`."""
     sim = ImuSimulator(traj, spec, rate_hz, seed)
     return sim.next_chunk(int(round(duration * rate_hz)))

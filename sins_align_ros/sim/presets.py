@@ -262,5 +262,5 @@ def scenario(name, **overrides):
 
 
 def misalignment_rad(sc):
-    """The scenario's initial misalignment in rad, (3,)."""
+    """Return the scenario's initial misalignment in rad, (3,)."""
     return np.asarray(sc.misalignment_deg, dtype=float) * DEG

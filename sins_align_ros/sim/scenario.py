@@ -56,7 +56,7 @@ class ScenarioStream:
         return self.imu.k * self.imu.dt
 
     def next_block(self, n):
-        """The next ``n`` IMU samples and the GNSS epochs in the same interval."""
+        """Simulate the next ``n`` IMU samples and the GNSS epochs in the same interval."""
         t_start = self.t
         chunk = self.imu.next_chunk(n)
         block = SimBlock(imu=chunk)

@@ -1,0 +1,215 @@
+"""Nodes on a real DDS graph: simulator output, /clock, parameters, config files, SIGINT."""
+import os
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+rclpy = pytest.importorskip('rclpy')
+
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from geometry_msgs.msg import TwistWithCovarianceStamped  # noqa: E402
+from nav_msgs.msg import Odometry  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
+from rosgraph_msgs.msg import Clock  # noqa: E402
+from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus  # noqa: E402
+
+from conftest import spin_until  # noqa: E402
+from sins_align_ros.nav import earth  # noqa: E402
+from sins_align_ros.nav.frames import DEG, nav_to_euler, quat_to_euler  # noqa: E402
+from sins_align_ros.ros.alignment_node import AlignmentNode  # noqa: E402
+from sins_align_ros.ros.conversions import stamp_to_ns  # noqa: E402
+from sins_align_ros.ros.simulator_node import SimulatorNode  # noqa: E402
+from sins_align_ros.sim.imu import DPSH, UG  # noqa: E402
+from test_package import resolve_executable  # noqa: E402
+
+pytestmark = pytest.mark.ros
+ROOT = Path(__file__).resolve().parents[1]
+
+
+class Recorder:
+    """A node that records every message on the simulator's topics."""
+
+    def __init__(self, ctx):
+        self.node = rclpy.create_node('recorder', context=ctx)
+        qos = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
+        self.msgs = {k: [] for k in ('imu', 'fix', 'vel', 'truth', 'clock', 'diag')}
+        for topic, typ, key in (('imu/data_raw', Imu, 'imu'), ('gnss/fix', NavSatFix, 'fix'),
+                                ('gnss/vel', TwistWithCovarianceStamped, 'vel'),
+                                ('sim/truth', Odometry, 'truth'), ('/clock', Clock, 'clock'),
+                                ('/diagnostics', DiagnosticArray, 'diag')):
+            self.node.create_subscription(typ, topic, self.msgs[key].append, qos)
+
+
+def test_simulator_publishes_consistent_physical_data(ros_context):
+    sim = SimulatorNode(context=ros_context, parameter_overrides=[
+        Parameter('scenario', value='static_navigation'), Parameter('imu_rate_hz', value=200.0),
+        Parameter('real_time_factor', value=8.0), Parameter('start_time', value=1000.0),
+        Parameter('seed', value=3)])
+    rec = Recorder(ros_context)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(sim)
+    ex.add_node(rec.node)
+    assert spin_until(ex, lambda: len(rec.msgs['fix']) >= 6 and len(rec.msgs['imu']) >= 1200,
+                      timeout_s=30.0)
+    imu = rec.msgs['imu']
+    ns = np.array([stamp_to_ns(m.header.stamp) for m in imu])
+    assert ns[0] == 1000 * 10 ** 9 + 5_000_000                 # start_time + first dt
+    assert np.all(np.diff(ns) == 5_000_000)                     # 200 Hz, no gap, in order
+    assert {m.header.frame_id for m in imu} == {'imu_link'}
+    m0 = imu[0]
+    assert m0.orientation_covariance[0] == -1.0                 # REP-145: no orientation
+    assert m0.angular_velocity_covariance[0] == pytest.approx((0.001 * DPSH) ** 2 * 200)
+    assert m0.linear_acceleration_covariance[8] == pytest.approx((10 * UG) ** 2 * 200)
+    acc = np.array([[m.linear_acceleration.x, m.linear_acceleration.y,
+                     m.linear_acceleration.z] for m in imu]).mean(axis=0)
+    gyr = np.array([[m.angular_velocity.x, m.angular_velocity.y,
+                     m.angular_velocity.z] for m in imu]).mean(axis=0)
+    g = earth.gravity(34 * DEG, 50.0)
+    assert acc == pytest.approx([0.0, 0.0, g], abs=3e-3)        # level: +g on z (100 ug bias)
+    assert np.linalg.norm(gyr) == pytest.approx(earth.OMEGA_IE, rel=0.01)
+
+    fix = rec.msgs['fix']
+    fns = np.array([stamp_to_ns(m.header.stamp) for m in fix])
+    assert np.all(np.diff(fns) == 10 ** 9)                      # 1 Hz
+    assert all(m.status.status == NavSatStatus.STATUS_FIX for m in fix)
+    assert fix[0].position_covariance_type == NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN
+    assert fix[0].position_covariance[0] == pytest.approx(1.0)
+    assert fix[0].header.frame_id == 'gnss_link'
+    lat = np.array([m.latitude for m in fix])
+    assert np.abs(lat - 34.0).max() * DEG * earth.A < 6.0       # within 6 sigma of truth
+    vel = rec.msgs['vel']
+    assert vel and abs(vel[0].twist.twist.linear.x) < 0.3
+    assert vel[0].twist.covariance[0] == pytest.approx(0.05 ** 2)
+
+    truth = rec.msgs['truth']
+    tns = np.array([stamp_to_ns(m.header.stamp) for m in truth])
+    assert np.all(np.diff(tns) == 100_000_000)                  # 10 Hz
+    q = truth[-1].pose.pose.orientation
+    euler = quat_to_euler([q.x, q.y, q.z, q.w])
+    assert euler == pytest.approx(nav_to_euler(0.0, 0.0, 30 * DEG), abs=1e-12)
+    assert truth[-1].header.frame_id == 'enu' and truth[-1].child_frame_id == 'imu_link'
+    ex.shutdown()
+
+
+def test_as_fast_as_possible_mode_drives_use_sim_time_nodes(ros_context):
+    sim = SimulatorNode(context=ros_context, parameter_overrides=[
+        Parameter('scenario', value='ship_sway'), Parameter('duration', value=20.0),
+        Parameter('real_time_factor', value=0.0), Parameter('start_time', value=500.0)])
+    follower = rclpy.create_node('follower', context=ros_context, parameter_overrides=[
+        Parameter('use_sim_time', value=True)])
+    rec = Recorder(ros_context)
+    ex = SingleThreadedExecutor(context=ros_context)
+    for n in (sim, follower, rec.node):
+        ex.add_node(n)
+    t_wall = time.monotonic()
+    assert spin_until(ex, lambda: sim.done, timeout_s=60.0)
+    wall = time.monotonic() - t_wall
+    spin_until(ex, lambda: rec.msgs['clock'] and stamp_to_ns(
+        rec.msgs['clock'][-1].clock) == 520 * 10 ** 9, timeout_s=5.0)
+    assert stamp_to_ns(rec.msgs['clock'][-1].clock) == 520 * 10 ** 9
+    assert follower.get_clock().now().nanoseconds == 520 * 10 ** 9
+    assert wall < 20.0                                           # faster than real time
+    ex.shutdown()
+
+
+def test_same_seed_same_data_different_seed_different_data(ros_context):
+    def run(seed):
+        sim = SimulatorNode(context=ros_context, parameter_overrides=[
+            Parameter('scenario', value='static_tactical'), Parameter('duration', value=2.0),
+            Parameter('real_time_factor', value=0.0), Parameter('seed', value=seed),
+            Parameter('start_time', value=10.0)])
+        rec = Recorder(ros_context)
+        ex = SingleThreadedExecutor(context=ros_context)
+        ex.add_node(sim)
+        ex.add_node(rec.node)
+        spin_until(ex, lambda: len(rec.msgs['imu']) >= 200, timeout_s=30.0)
+        ex.shutdown()
+        sim.destroy_node()
+        rec.node.destroy_node()
+        return [m.angular_velocity.x for m in rec.msgs['imu']][:200]
+
+    a, b, c = run(1), run(1), run(2)
+    assert len(a) == 200 and a == b and a != c
+
+
+def test_invalid_parameters_are_refused_with_a_reason(ros_context):
+    with pytest.raises(ValueError, match='not one of'):
+        SimulatorNode(context=ros_context,
+                      parameter_overrides=[Parameter('scenario', value='atlantis')])
+    sim = SimulatorNode(context=ros_context)
+    res = sim.set_parameters([Parameter('real_time_factor', value=-1.0)])[0]
+    assert not res.successful and res.reason
+    res = sim.set_parameters([Parameter('real_time_factor', value=2.0)])[0]
+    assert res.successful and sim._rtf == 2.0
+    node = AlignmentNode(context=ros_context)
+    res = node.set_parameters([Parameter('fine_filter', value='magic')])[0]
+    assert not res.successful and 'fine_filter' in res.reason
+    res = node.set_parameters([Parameter('initial_latitude_deg', value=95.0)])[0]
+    assert not res.successful
+
+
+def test_alignment_node_reports_waiting_then_counts_imu(ros_context):
+    node = AlignmentNode(context=ros_context, parameter_overrides=[
+        Parameter('diagnostic_period', value=0.2)])
+    sim = SimulatorNode(context=ros_context, parameter_overrides=[
+        Parameter('real_time_factor', value=5.0), Parameter('start_time', value=100.0)])
+    rec = Recorder(ros_context)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(node)
+    ex.add_node(rec.node)
+    assert spin_until(ex, lambda: rec.msgs['diag'], timeout_s=10.0)
+    st = rec.msgs['diag'][0].status[0]
+    assert st.name == 'alignment_node: alignment' and 'waiting' in st.message
+    ex.add_node(sim)
+    assert spin_until(ex, lambda: node.counts['imu'] > 300, timeout_s=30.0)
+    assert node.counts['imu_rejected'] == 0
+    ex.shutdown()
+
+
+@pytest.mark.parametrize('path', sorted((ROOT / 'config').glob('*.yaml')), ids=lambda p: p.name)
+def test_config_files_load_into_the_nodes(path, domain_id):
+    """Every YAML in config/ is loaded by the node it names, through --params-file."""
+    data = yaml.safe_load(path.read_text())
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx, domain_id=domain_id,
+               args=['--ros-args', '--params-file', str(path)])
+    try:
+        for node_name, body in data.items():
+            cls = {'alignment_node': AlignmentNode, 'simulator_node': SimulatorNode}[node_name]
+            node = cls(context=ctx)
+            for name, value in body['ros__parameters'].items():
+                assert node.get_parameter(name).value == value
+            node.destroy_node()
+    finally:
+        ctx.try_shutdown()
+
+
+@pytest.mark.parametrize('exe', ['alignment_node', 'simulator_node'])
+def test_executables_start_and_exit_cleanly_on_sigint(exe, ros_context, domain_id):
+    """`ros2 run sins_align_ros EXE` then Ctrl-C: exit code 0, no traceback."""
+    path = resolve_executable(exe)
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id),
+               ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
+    proc = subprocess.Popen([path], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    probe = rclpy.create_node('probe', context=ros_context)
+    try:
+        end = time.monotonic() + 30.0
+        while exe not in probe.get_node_names() and time.monotonic() < end:
+            assert proc.poll() is None, proc.communicate()
+            time.sleep(0.1)
+        assert exe in probe.get_node_names()
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=15.0)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert 'Traceback' not in err and 'Traceback' not in out
