@@ -47,7 +47,7 @@ def radii(lat):
 
 
 def gravity(lat, h):
-    """Return normal gravity (m/s^2) at latitude ``lat`` (rad) and height ``h`` (m).
+    """Return the normal gravity magnitude, m/s^2, at ``lat`` (rad) and height ``h`` (m).
 
     Somigliana's closed form on the ellipsoid plus the second-order free-air
     correction in height (TR8350.2 eq. 4-1 and 4-3).
