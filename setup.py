@@ -26,6 +26,7 @@ setup(
         'console_scripts': [
             'alignment_node = sins_align_ros.ros.alignment_node:main',
             'simulator_node = sins_align_ros.ros.simulator_node:main',
+            'sins_align_demo = sins_align_ros.ros.demo:main',
         ],
     },
 )
