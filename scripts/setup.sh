@@ -31,7 +31,7 @@ mkdir -p "$root/log"
 # colcon build when any packaged file is newer than the last build
 stamp="$root/install/.build-stamp"
 if [ ! -f "$stamp" ] || [ -n "$(find setup.py setup.cfg package.xml resource sins_align_ros config launch \
-      -newer "$stamp" -not -name '*.pyc' -print -quit 2>/dev/null)" ]; then
+      -name __pycache__ -prune -o -newer "$stamp" -print -quit 2>/dev/null)" ]; then
   echo "setup: colcon build"
   (
     export PATH="$venv/bin:$PATH"
