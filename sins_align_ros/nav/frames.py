@@ -85,8 +85,16 @@ def euler_to_dcm(euler):
 
 
 def dcm_to_euler(C_b_n):
-    """REP-103 ``[roll, pitch, yaw]`` (rad) of ``C_b_n``; yaw in (-pi, pi]."""
-    return Rotation.from_matrix(C_b_n).as_euler('xyz')
+    """REP-103 ``[roll, pitch, yaw]`` (rad) of ``C_b_n``; yaw in (-pi, pi].
+
+    Closed form for ``C = Rz(y) Ry(p) Rx(r)``: ``r = atan2(C21, C22)``,
+    ``p = -asin(C20)``, ``y = atan2(C10, C00)`` (vectorised, (..., 3, 3) -> (..., 3)).
+    """
+    C = np.asarray(C_b_n, dtype=float)
+    roll = np.arctan2(C[..., 2, 1], C[..., 2, 2])
+    pitch = -np.arcsin(np.clip(C[..., 2, 0], -1.0, 1.0))
+    yaw = np.arctan2(C[..., 1, 0], C[..., 0, 0])
+    return np.stack([roll, pitch, yaw], axis=-1)
 
 
 def euler_to_quat(euler):
@@ -100,8 +108,32 @@ def quat_to_euler(q):
 
 
 def dcm_to_quat(C_b_n):
-    """Quaternion ``(x, y, z, w)`` of ``C_b_n``, sign chosen with w >= 0."""
-    q = Rotation.from_matrix(C_b_n).as_quat()
+    """Quaternion ``(x, y, z, w)`` of ``C_b_n``, sign chosen with w >= 0.
+
+    Shepperd's method, vectorised over (..., 3, 3); the input must be orthonormal.
+    """
+    C = np.asarray(C_b_n, dtype=float)
+    tr = C[..., 0, 0] + C[..., 1, 1] + C[..., 2, 2]
+    cand = np.stack([tr, C[..., 0, 0], C[..., 1, 1], C[..., 2, 2]], axis=-1)
+    k = np.argmax(cand, axis=-1)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        q = np.empty(C.shape[:-2] + (4,))
+        # case w largest
+        s0 = np.sqrt(np.maximum(1.0 + tr, 0.0)) * 2.0
+        q0 = np.stack([(C[..., 2, 1] - C[..., 1, 2]) / s0, (C[..., 0, 2] - C[..., 2, 0]) / s0,
+                       (C[..., 1, 0] - C[..., 0, 1]) / s0, 0.25 * s0], axis=-1)
+        s1 = np.sqrt(np.maximum(1.0 + C[..., 0, 0] - C[..., 1, 1] - C[..., 2, 2], 0.0)) * 2.0
+        q1 = np.stack([0.25 * s1, (C[..., 0, 1] + C[..., 1, 0]) / s1,
+                       (C[..., 0, 2] + C[..., 2, 0]) / s1, (C[..., 2, 1] - C[..., 1, 2]) / s1], -1)
+        s2 = np.sqrt(np.maximum(1.0 - C[..., 0, 0] + C[..., 1, 1] - C[..., 2, 2], 0.0)) * 2.0
+        q2 = np.stack([(C[..., 0, 1] + C[..., 1, 0]) / s2, 0.25 * s2,
+                       (C[..., 1, 2] + C[..., 2, 1]) / s2, (C[..., 0, 2] - C[..., 2, 0]) / s2], -1)
+        s3 = np.sqrt(np.maximum(1.0 - C[..., 0, 0] - C[..., 1, 1] + C[..., 2, 2], 0.0)) * 2.0
+        q3 = np.stack([(C[..., 0, 2] + C[..., 2, 0]) / s3, (C[..., 1, 2] + C[..., 2, 1]) / s3,
+                       0.25 * s3, (C[..., 1, 0] - C[..., 0, 1]) / s3], -1)
+        for i, qi in enumerate((q0, q1, q2, q3)):
+            q = np.where((k == i)[..., None], qi, q)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     return np.where(q[..., 3:4] < 0.0, -q, q)
 
 
@@ -190,3 +222,41 @@ def attitude_error(C_est, C_true):
 def euler_error(euler_est, euler_true):
     """Difference of Euler triples with the angle wrap removed, rad."""
     return wrap_pi(np.asarray(euler_est) - np.asarray(euler_true))
+
+
+def phi_to_euler_jacobian(euler):
+    """``d(euler)/d(phi)`` (3, 3) for a nav-frame perturbation ``C -> exp([phi x]) C``.
+
+    For ``C_b_n = Rz(y) Ry(p) Rx(r)`` a nav-frame rotation ``phi`` maps to Euler
+    changes through ``phi = E d(euler)`` with ``E = [Rz Ry e_x, Rz e_y, e_z]``.
+    Singular at pitch = +-90 deg (gimbal lock).
+    """
+    r, p, y = euler
+    cy, sy, cp, sp = np.cos(y), np.sin(y), np.cos(p), np.sin(p)
+    E = np.array([[cy * cp, -sy, 0.0],
+                  [sy * cp, cy, 0.0],
+                  [-sp, 0.0, 1.0]])
+    return np.linalg.inv(E)
+
+
+def euler_cov_from_phi_cov(euler, P_phi):
+    """Covariance of REP-103 Euler angles from a nav-frame misalignment covariance.
+
+    ``euler`` (3,) or (N, 3); ``P_phi`` (3, 3) or (N, 3, 3); returns (3, 3) or (N, 3, 3).
+    """
+    euler = np.asarray(euler, dtype=float)
+    if euler.ndim == 1:
+        J = phi_to_euler_jacobian(euler)
+        return J @ P_phi @ J.T
+    r, p, y = euler[:, 0], euler[:, 1], euler[:, 2]
+    cy, sy, cp, sp = np.cos(y), np.sin(y), np.cos(p), np.sin(p)
+    # closed-form inverse of E = [[cy cp, -sy, 0], [sy cp, cy, 0], [-sp, 0, 1]]
+    J = np.zeros((len(euler), 3, 3))
+    J[:, 0, 0] = cy / cp
+    J[:, 0, 1] = sy / cp
+    J[:, 1, 0] = -sy
+    J[:, 1, 1] = cy
+    J[:, 2, 0] = cy * sp / cp
+    J[:, 2, 1] = sy * sp / cp
+    J[:, 2, 2] = 1.0
+    return np.einsum('kij,kjl,kml->kim', J, np.broadcast_to(P_phi, J.shape), J)

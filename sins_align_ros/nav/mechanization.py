@@ -209,3 +209,120 @@ class Strapdown:
             V[k] = self.v_n
             P[k] = (self.lat, self.lon, self.h)
         return {'C_b_n': C, 'v_n': V, 'pos': P}
+
+
+def _exp_so3_batch(v):
+    """Rodrigues for a stack of rotation vectors (N, 3) -> (N, 3, 3)."""
+    a2 = np.einsum('ki,ki->k', v, v)
+    small = a2 < 1e-12
+    a = np.sqrt(np.where(small, 1.0, a2))
+    s = np.where(small, 1.0 - a2 / 6.0, np.sin(a) / a)
+    c = np.where(small, 0.5 - a2 / 24.0, (1.0 - np.cos(a)) / np.where(small, 1.0, a2))
+    x, y, z = v[:, 0], v[:, 1], v[:, 2]
+    out = np.empty((len(v), 3, 3))
+    out[:, 0, 0] = 1.0 - c * (y * y + z * z)
+    out[:, 0, 1] = c * x * y - s * z
+    out[:, 0, 2] = c * x * z + s * y
+    out[:, 1, 0] = c * x * y + s * z
+    out[:, 1, 1] = 1.0 - c * (x * x + z * z)
+    out[:, 1, 2] = c * y * z - s * x
+    out[:, 2, 0] = c * x * z - s * y
+    out[:, 2, 1] = c * y * z + s * x
+    out[:, 2, 2] = 1.0 - c * (x * x + y * y)
+    return out
+
+
+def _cross_rows(a, b):
+    """Row-wise cross product of (N, 3) arrays (faster than np.cross for small N)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
+def prefix_products(B):
+    """Cumulative matrix products ``B_1, B_1 B_2, ..., B_1...B_N`` of (N, 3, 3).
+
+    Hillis-Steele scan: log2(N) batched multiplications instead of N sequential ones.
+    """
+    P = np.array(B, dtype=float, copy=True)
+    n, step = len(P), 1
+    while step < n:
+        nxt = P.copy()
+        nxt[step:] = P[:-step] @ P[step:]
+        P = nxt
+        step *= 2
+    return P
+
+
+class StationaryStrapdown(Strapdown):
+    """The stationary mechanization (seed 002 Table 1) vectorised over sample blocks.
+
+    Same state and the same arithmetic as :class:`Strapdown` with
+    ``MechanizationOptions.stationary(coriolis)``: because the navigation frame
+    then turns only with the Earth (one fixed axis) the nav-side rotations of a
+    block commute and collapse to one, and the body-side rotations are a prefix
+    product (:func:`prefix_products`). ``run`` returns the state after every sample.
+    """
+
+    def __init__(self, C_b_n, lat, lon, h, coriolis=False, hold_vertical=True):
+        opts = MechanizationOptions(transport_rate=False, update_position=False,
+                                    coriolis=coriolis, hold_vertical=hold_vertical)
+        super().__init__(C_b_n, np.zeros(3), lat, lon, h, opts)
+        self._w_ie = earth.w_ie_n(self.lat)
+        self._g_n = np.array([0.0, 0.0, -earth.gravity(self.lat, self.h)])
+
+    def run(self, dtheta, dv, dt):
+        """Process N samples; return ``{'C_b_n': (N, 3, 3), 'v_n': (N, 3)}``.
+
+        ``dt`` is a float or (N,) array of sample intervals.
+        """
+        dtheta = np.asarray(dtheta, dtype=float)
+        dv = np.asarray(dv, dtype=float)
+        n = len(dtheta)
+        dt = np.broadcast_to(np.asarray(dt, dtype=float), (n,))
+        dth_p = np.vstack([self._dtheta_prev[None], dtheta[:-1]])
+        dv_p = np.vstack([self._dv_prev[None], dv[:-1]])
+        phi = dtheta + _cross_rows(dth_p, dtheta) / 12.0
+        rot = _cross_rows(dtheta, dv)
+        dv_b = (dv + 0.5 * rot + _cross_rows(dtheta, rot) / 6.0
+                + (_cross_rows(dth_p, dv) + _cross_rows(dv_p, dtheta)) / 12.0)
+        zeta = self._w_ie[None, :] * dt[:, None]
+        body = prefix_products(_exp_so3_batch(phi))
+        nav = _exp_so3_batch(-np.cumsum(zeta, axis=0))
+        C = np.einsum('kij,jl,klm->kim', nav, self.C_b_n, body)
+        C_prev = np.concatenate([self.C_b_n[None], C[:-1]])
+        dv_sf = np.einsum('kij,kj->ki', C_prev, dv_b)
+        dv_sf = dv_sf - 0.5 * _cross_rows(zeta, dv_sf)
+        dv_tot = dv_sf + self._g_n[None, :] * dt[:, None]
+        if self.options.coriolis:
+            V = np.empty((n, 3))
+            v, v_prev = self.v_n.copy(), self._v_prev.copy()
+            two_w = 2.0 * self._w_ie
+            for k in range(n):
+                v_mid = 1.5 * v - 0.5 * v_prev
+                v_new = v + dv_tot[k] - _cross(two_w, v_mid) * dt[k]
+                if self.options.hold_vertical:
+                    v_new[2] = 0.0
+                v_prev, v = v, v_new
+                V[k] = v
+        else:
+            if self.options.hold_vertical:
+                dv_tot[:, 2] = 0.0
+            V = self.v_n[None, :] + np.cumsum(dv_tot, axis=0)
+        self._v_prev = V[-2].copy() if n > 1 else self.v_n.copy()
+        self.v_n = V[-1].copy()
+        self.C_b_n = orthonormal_if_needed(C[-1], self._steps + n, n)
+        self._steps += n
+        self._dtheta_prev = dtheta[-1].copy()
+        self._dv_prev = dv[-1].copy()
+        return {'C_b_n': C, 'v_n': V}
+
+
+def orthonormal_if_needed(C, steps, n):
+    """Re-orthonormalise ``C`` when a multiple of 1000 steps was crossed."""
+    if (steps // 1000) != ((steps - n) // 1000):
+        u, _, vt = np.linalg.svd(C)
+        return u @ vt
+    return C

@@ -1,55 +1,29 @@
 """Parameter declaration with descriptors, ranges and validation for rclpy nodes."""
-from dataclasses import dataclass
-
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType, SetParametersResult)
 
+from ..align.params import Param, markdown_table  # noqa: F401  (re-exported for nodes)
 
-@dataclass(frozen=True)
-class Param:
-    """One node parameter.
 
-    ``choices`` restricts a string; ``lo``/``hi`` a number (inclusive);
-    ``read_only`` parameters can only be set at start-up.
-    """
-
-    name: str
-    default: object
-    description: str
-    lo: float = None
-    hi: float = None
-    choices: tuple = None
-    read_only: bool = False
-
-    def descriptor(self):
-        """Build the rcl ParameterDescriptor with type, range and constraint text."""
-        d = ParameterDescriptor(name=self.name, description=self.description,
-                                read_only=self.read_only)
-        if isinstance(self.default, bool):
-            d.type = ParameterType.PARAMETER_BOOL
-        elif isinstance(self.default, int):
-            d.type = ParameterType.PARAMETER_INTEGER
-            if self.lo is not None:
-                d.integer_range = [IntegerRange(from_value=int(self.lo), to_value=int(self.hi),
-                                                step=0)]
-        elif isinstance(self.default, float):
-            d.type = ParameterType.PARAMETER_DOUBLE
-            if self.lo is not None:
-                d.floating_point_range = [FloatingPointRange(from_value=float(self.lo),
-                                                             to_value=float(self.hi), step=0.0)]
-        else:
-            d.type = ParameterType.PARAMETER_STRING
-        if self.choices:
-            d.additional_constraints = 'one of: ' + ', '.join(self.choices)
-        return d
-
-    def check(self, value):
-        """Return an error message for ``value`` or None if it is acceptable."""
-        if self.choices and value not in self.choices:
-            return f'{self.name}={value!r} is not one of {", ".join(self.choices)}'
-        if self.lo is not None and not (self.lo <= value <= self.hi):
-            return f'{self.name}={value!r} is outside [{self.lo}, {self.hi}]'
-        return None
+def descriptor(p):
+    """Build the rcl ParameterDescriptor of a :class:`Param` (type, range, choices)."""
+    d = ParameterDescriptor(name=p.name, description=p.description, read_only=p.read_only)
+    if isinstance(p.default, bool):
+        d.type = ParameterType.PARAMETER_BOOL
+    elif isinstance(p.default, int):
+        d.type = ParameterType.PARAMETER_INTEGER
+        if p.lo is not None:
+            d.integer_range = [IntegerRange(from_value=int(p.lo), to_value=int(p.hi), step=0)]
+    elif isinstance(p.default, float):
+        d.type = ParameterType.PARAMETER_DOUBLE
+        if p.lo is not None:
+            d.floating_point_range = [FloatingPointRange(from_value=float(p.lo),
+                                                         to_value=float(p.hi), step=0.0)]
+    else:
+        d.type = ParameterType.PARAMETER_STRING
+    if p.choices:
+        d.additional_constraints = 'one of: ' + ', '.join(p.choices)
+    return d
 
 
 def declare(node, params):
@@ -62,7 +36,7 @@ def declare(node, params):
     by_name = {p.name: p for p in params}
     values = {}
     for p in params:
-        values[p.name] = node.declare_parameter(p.name, p.default, p.descriptor()).value
+        values[p.name] = node.declare_parameter(p.name, p.default, descriptor(p)).value
         err = p.check(values[p.name])
         if err:
             raise ValueError(err)
@@ -79,17 +53,3 @@ def declare(node, params):
 
     node.add_on_set_parameters_callback(_on_set)
     return values
-
-
-def markdown_table(params):
-    """Markdown rows documenting ``params`` (the README's parameter tables are built from this)."""
-    rows = ['| name | default | range / values | description |', '|---|---|---|---|']
-    for p in params:
-        if p.choices:
-            rng = ', '.join(f'`{c}`' for c in p.choices)
-        elif p.lo is not None:
-            rng = f'[{p.lo}, {p.hi}]'
-        else:
-            rng = ''
-        rows.append(f'| `{p.name}` | `{p.default}` | {rng} | {p.description} |')
-    return '\n'.join(rows)

@@ -1,0 +1,148 @@
+"""Parameters shared by alignment_node and sins_align_replay (names, ranges, docs).
+
+No ROS here: :class:`Param` is plain data; ``ros/params.py`` turns it into
+rcl descriptors, the replay tool reads YAML and ``--set`` overrides with it.
+"""
+from dataclasses import dataclass
+
+import yaml
+
+FINE_FILTERS = ('reduced7', 'stationary10', 'stationary12', 'ckf', 'asckf', 'ukf',
+                'vbakf', 'mvbakf', 'vbckf', 'vbch')
+#: fine filters implemented in this version
+AVAILABLE_FINE_FILTERS = ('reduced7', 'stationary10', 'stationary12')
+COARSE_METHODS = ('auto', 'analytic', 'inertial_frame')
+
+
+@dataclass(frozen=True)
+class Param:
+    """One parameter: name, default (its type is the parameter's type), doc and limits.
+
+    ``choices`` restricts a string; ``lo``/``hi`` a number (inclusive);
+    ``read_only`` parameters can only be set at start-up.
+    """
+
+    name: str
+    default: object
+    description: str
+    lo: float = None
+    hi: float = None
+    choices: tuple = None
+    read_only: bool = False
+
+    def check(self, value):
+        """Return an error message for ``value`` or None if it is acceptable."""
+        if type(value) is not type(self.default) and not (
+                isinstance(self.default, float) and type(value) is int):
+            return (f'{self.name}={value!r} has type {type(value).__name__}, '
+                    f'expected {type(self.default).__name__}')
+        if self.choices and value not in self.choices:
+            return f'{self.name}={value!r} is not one of {", ".join(self.choices)}'
+        if self.lo is not None and not (self.lo <= value <= self.hi):
+            return f'{self.name}={value!r} is outside [{self.lo}, {self.hi}]'
+        return None
+
+
+ALIGNMENT_PARAMS = (
+    Param('fine_filter', 'reduced7', 'fine-alignment filter', choices=FINE_FILTERS),
+    Param('coarse_method', 'auto', 'coarse alignment: analytic (still base), inertial_frame '
+          '(sway, disturbance) or auto (picks by detecting motion)', choices=COARSE_METHODS),
+    Param('coarse_duration', 60.0, 'coarse alignment time, s', 1.0, 3600.0),
+    Param('initial_latitude_deg', 0.0, 'latitude used without a GNSS fix, deg', -89.0, 89.0),
+    Param('initial_longitude_deg', 0.0, 'longitude used without a GNSS fix, deg',
+          -180.0, 180.0),
+    Param('initial_height_m', 0.0, 'height used without a GNSS fix, m', -1000.0, 50000.0),
+    Param('use_gnss_position', True, 'take latitude/height from a valid gnss/fix when one '
+          'arrives before fine alignment starts'),
+    Param('gyro_bias_dph', 0.01, 'gyro constant bias, 1 sigma, deg/h (filter model)',
+          0.0, 36000.0),
+    Param('gyro_arw_dpsh', 0.001, 'gyro angle random walk, deg/sqrt(h) (filter model)',
+          0.0, 100.0),
+    Param('accel_bias_ug', 100.0, 'accelerometer constant bias, 1 sigma, micro-g', 0.0, 1e5),
+    Param('accel_vrw_ug_rthz', 10.0, 'accelerometer white noise, micro-g/sqrt(Hz)', 0.0, 1e5),
+    Param('zero_velocity_sigma', 0.01, 'zero-velocity measurement noise, m/s (still base)',
+          1e-5, 10.0),
+    Param('fine_update_hz', 10.0, 'fine-filter measurement rate, Hz', 0.1, 1000.0),
+    Param('max_stages', 3, 'staged re-initialisations of the fine filter after convergence '
+          '(seed 002 sec. 4; 1 = none)', 1, 10),
+    Param('stage_min_duration', 30.0, 'minimum time of one fine-alignment stage, s',
+          5.0, 3600.0),
+    Param('max_gap', 0.5, 'largest IMU stamp gap bridged by interpolation-free '
+          'integration, s; longer gaps restart the mechanization history', 0.001, 10.0),
+)
+
+_BY_NAME = {p.name: p for p in ALIGNMENT_PARAMS}
+
+
+def defaults():
+    """Default values of all alignment parameters, name -> value."""
+    return {p.name: p.default for p in ALIGNMENT_PARAMS}
+
+
+def validate(values):
+    """Check a dict of parameter values; return it with ints promoted to float where due.
+
+    Raises ``ValueError`` naming the first bad or unknown parameter.
+    """
+    out = {}
+    for k, v in values.items():
+        p = _BY_NAME.get(k)
+        if p is None:
+            raise ValueError(f'unknown parameter {k!r}')
+        err = p.check(v)
+        if err:
+            raise ValueError(err)
+        out[k] = float(v) if isinstance(p.default, float) else v
+    if out.get('fine_filter', 'reduced7') not in AVAILABLE_FINE_FILTERS:
+        raise ValueError(f"fine_filter={out['fine_filter']!r} is not available in this version "
+                         f"(available: {', '.join(AVAILABLE_FINE_FILTERS)})")
+    return out
+
+
+def parse_value(name, text):
+    """Convert ``--set name=value`` text to the parameter's type."""
+    p = _BY_NAME.get(name)
+    if p is None:
+        raise ValueError(f'unknown parameter {name!r}')
+    if isinstance(p.default, bool):
+        if text.lower() in ('true', '1', 'yes'):
+            return True
+        if text.lower() in ('false', '0', 'no'):
+            return False
+        raise ValueError(f'{name} expects true/false, got {text!r}')
+    try:
+        return type(p.default)(text)
+    except ValueError:
+        raise ValueError(f'{name} expects a {type(p.default).__name__}, got {text!r}') from None
+
+
+def load_yaml(path, node_name='alignment_node'):
+    """Read alignment parameters from a YAML file.
+
+    Accepts the ROS parameter-file layout (``node: {ros__parameters: {...}}``,
+    also with ``/**`` as node name) or a flat mapping of names to values.
+    """
+    with open(path) as f:
+        data = yaml.safe_load(f) or {}
+    if not isinstance(data, dict):
+        raise ValueError(f'{path}: expected a mapping of parameters')
+    for key in (node_name, '/' + node_name, '/**'):
+        if isinstance(data.get(key), dict) and 'ros__parameters' in data[key]:
+            return dict(data[key]['ros__parameters'])
+    if any(isinstance(v, dict) and 'ros__parameters' in v for v in data.values()):
+        raise ValueError(f'{path}: no parameters for {node_name}')
+    return dict(data)
+
+
+def markdown_table(params):
+    """Markdown rows documenting ``params`` (the README's parameter tables are built from this)."""
+    rows = ['| name | default | range / values | description |', '|---|---|---|---|']
+    for p in params:
+        if p.choices:
+            rng = ', '.join(f'`{c}`' for c in p.choices)
+        elif p.lo is not None:
+            rng = f'[{p.lo}, {p.hi}]'
+        else:
+            rng = ''
+        rows.append(f'| `{p.name}` | `{p.default}` | {rng} | {p.description} |')
+    return '\n'.join(rows)

@@ -1,0 +1,171 @@
+"""Coarse alignment: analytic double-vector and inertial-frame (i0) alignment.
+
+Both return ``C_b_n`` (FLU body -> ENU) at the end of the data window.
+
+* :func:`analytic` — TRIAD on the mean specific force (= -gravity) and the mean
+  angular rate (= Earth rate) of a still IMU (Titterton & Weston sec. 10.3).
+  Disturbance of the base corrupts the mean rate directly.
+* :func:`inertial_frame` — the i0 method: the body attitude change since the
+  start is integrated from the gyros in the inertial frame, so any rotation of
+  the base (sway, people walking on a vehicle) is followed exactly; the
+  specific force integrated in that frame is matched against the gravity
+  integral, which turns with the Earth in the inertial frame fixed at t0. The
+  unknown constant rotation between the frames is the Wahba (SVD) solution over
+  all epochs. Translational motion must average out (sway, heave), or be
+  supplied as velocity change (``dv_n``, e.g. from GNSS).
+* :func:`detect_motion` — used by ``coarse_method: auto`` to pick between them.
+"""
+import numpy as np
+
+from . import earth
+from .frames import orthonormalize, rotvec_to_dcm
+
+
+def _triad(a_b, b_b, a_n, b_n):
+    """DCM ``C_b_n`` with ``a_n = C a_b`` exactly and ``b`` matched as well as possible."""
+    def basis(a, b):
+        r1 = a / np.linalg.norm(a)
+        r2 = np.cross(a, b)
+        r2 = r2 / np.linalg.norm(r2)
+        return np.column_stack([r1, r2, np.cross(r1, r2)])
+    return basis(a_n, b_n) @ basis(a_b, b_b).T
+
+
+def analytic(dtheta, dv, dt, lat):
+    """Double-vector (TRIAD) alignment of a still IMU.
+
+    Parameters
+    ----------
+    dtheta, dv : ndarray (N, 3)
+        Increments, body FLU.
+    dt : float or ndarray (N,)
+    lat : float
+        Latitude, rad.
+
+    Returns
+    -------
+    C_b_n : ndarray (3, 3)
+    """
+    T = np.sum(np.broadcast_to(dt, (len(dtheta),)))
+    f_b = np.sum(dv, axis=0) / T
+    w_b = np.sum(dtheta, axis=0) / T
+    f_n = np.array([0.0, 0.0, 1.0])              # up: the specific force of a still body
+    w_n = earth.w_ie_n(lat)
+    return _triad(f_b, w_b, f_n, w_n)
+
+
+def body_attitude_increments(dtheta):
+    """``C_b(t_k)^{b0}`` for k = 1..N: body attitude relative to the start, (N, 3, 3).
+
+    Uses the same coning correction as the mechanization.
+    """
+    n = len(dtheta)
+    out = np.empty((n, 3, 3))
+    C = np.eye(3)
+    prev = np.zeros(3)
+    for k in range(n):
+        phi = dtheta[k] + np.cross(prev, dtheta[k]) / 12.0
+        C = C @ rotvec_to_dcm(phi)
+        out[k] = C
+        prev = dtheta[k]
+    return out
+
+
+def inertial_frame(dtheta, dv, dt, lat, h=0.0, dv_n=None, n_epochs=50):
+    """Inertial-frame (i0) coarse alignment, tolerant of sway and disturbance.
+
+    Parameters
+    ----------
+    dtheta, dv : ndarray (N, 3)
+        Increments, body FLU.
+    dt : float or ndarray (N,)
+    lat, h : float
+        Latitude (rad) and height (m).
+    dv_n : ndarray (N, 3) or None
+        Velocity change in ENU since the start at each sample (moving base with
+        velocity aiding); None for a base at rest on average.
+    n_epochs : int
+        Number of epochs used in the Wahba fit.
+
+    Returns
+    -------
+    C_b_n : ndarray (3, 3)
+        Attitude at the end of the window.
+    """
+    n = len(dtheta)
+    dt = np.broadcast_to(np.asarray(dt, dtype=float), (n,))
+    t = np.cumsum(dt)
+    C_bb0 = body_attitude_increments(dtheta)
+    # sculling-free specific-force integral in b0: sum of C_b(k-1)^b0 (dv + 0.5 dtheta x dv)
+    C_prev = np.concatenate([np.eye(3)[None], C_bb0[:-1]])
+    dv_c = dv + 0.5 * np.cross(dtheta, dv)
+    V_b0 = np.cumsum(np.einsum('kij,kj->ki', C_prev, dv_c), axis=0)
+    # gravity integral in i0 (ENU at t0, fixed in inertial space): the up vector turns
+    # about the Earth axis u at the Earth rate: C_n(t)^i0 = exp(W t [u x])
+    g = earth.gravity(lat, h)
+    u = np.array([0.0, np.cos(lat), np.sin(lat)])
+    up = np.array([0.0, 0.0, 1.0])
+    a = earth.OMEGA_IE * t
+    # integral of Rodrigues(u, W tau) @ up from 0 to t, closed form
+    par = np.dot(u, up) * u
+    perp = up - par
+    cr = np.cross(u, up)
+    W = earth.OMEGA_IE
+    V_i0 = g * (np.outer(t, par) + np.outer(np.sin(a) / W, perp)
+                + np.outer((1.0 - np.cos(a)) / W, cr))
+    if dv_n is not None:
+        # velocity change expressed in i0: sum of C_n^i0 d(v_n) (small-rotation form)
+        dvn = np.diff(np.vstack([np.zeros(3), dv_n]), axis=0)
+        Rz = _rotations(u, a)
+        V_i0 = V_i0 + np.cumsum(np.einsum('kij,kj->ki', Rz, dvn), axis=0)
+    idx = np.unique(np.linspace(n // 10, n - 1, n_epochs).astype(int))
+    B = np.einsum('ki,kj->ij', V_b0[idx], V_i0[idx])       # sum of b0 (x) i0 pairs
+    U, _, Vt = np.linalg.svd(B)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+    C_i0_b0 = U @ D @ Vt                                    # V_b0 = C_i0_b0 @ V_i0
+    C_n_i0_end = _rotations(u, a[-1:])[0]
+    return orthonormalize(C_n_i0_end.T @ C_i0_b0.T @ C_bb0[-1])
+
+
+def _rotations(u, angles):
+    """Rodrigues rotations about unit axis ``u`` by ``angles`` (N,), (N, 3, 3)."""
+    K = np.array([[0.0, -u[2], u[1]], [u[2], 0.0, -u[0]], [-u[1], u[0], 0.0]])
+    s = np.sin(angles)[:, None, None]
+    c = (1.0 - np.cos(angles))[:, None, None]
+    return np.eye(3)[None] + s * K[None] + c * (K @ K)[None]
+
+
+def detect_motion(dtheta, dv, dt, gyro_noise=0.0, accel_noise=0.0):
+    """Decide whether the base moves (sways, is disturbed) during the window.
+
+    Compares the scatter of 1-s means of the angular rate and of the specific
+    force direction with what sensor noise alone would give: ``gyro_noise``
+    (rad/sqrt(s), the ARW) and ``accel_noise`` (m/s^2/sqrt(Hz), the VRW). The
+    base is "moving" when either scatter exceeds 5x its noise level, with floors
+    of 0.2 x Earth rate and 20 micro-rad of tilt that a quiet base never reaches.
+
+    Returns
+    -------
+    moving : bool
+    rate_scatter : float
+        RMS scatter of the 1-s mean angular rate, rad/s.
+    tilt_scatter : float
+        RMS scatter of the 1-s mean specific-force direction, rad.
+    """
+    n = len(dtheta)
+    dt = float(np.mean(np.broadcast_to(dt, (n,))))
+    m = max(1, int(round(1.0 / dt)))
+    k = n // m
+    if k < 2:
+        return False, 0.0, 0.0
+    T = m * dt
+    w = dtheta[:k * m].reshape(k, m, 3).sum(axis=1) / T
+    f = dv[:k * m].reshape(k, m, 3).sum(axis=1) / T
+    u = f / np.linalg.norm(f, axis=1, keepdims=True)
+    rate_scatter = float(np.sqrt(np.mean(np.sum((w - w.mean(axis=0)) ** 2, axis=1))))
+    tilt_scatter = float(np.sqrt(np.mean(np.sum((u - u.mean(axis=0)) ** 2, axis=1))))
+    g = np.linalg.norm(f.mean(axis=0))
+    rate_thr = max(0.2 * earth.OMEGA_IE, 5.0 * np.sqrt(3.0 / T) * gyro_noise)
+    tilt_thr = max(20e-6, 5.0 * np.sqrt(2.0 / T) * accel_noise / g)
+    moving = bool(rate_scatter > rate_thr or tilt_scatter > tilt_thr)
+    return moving, rate_scatter, tilt_scatter
