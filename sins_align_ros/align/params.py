@@ -75,7 +75,7 @@ _BY_NAME = {p.name: p for p in ALIGNMENT_PARAMS}
 
 
 def defaults():
-    """Default values of all alignment parameters, name -> value."""
+    """Return the default values of all alignment parameters, name -> value."""
     return {p.name: p.default for p in ALIGNMENT_PARAMS}
 
 

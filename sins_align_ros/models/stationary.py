@@ -132,7 +132,7 @@ class StationaryModel:
         return H
 
     def P0(self, sigma_v, sigma_phi, noise):
-        """Initial covariance: velocity sigma (m/s), misalignment sigmas (3,) rad, biases."""
+        """Return the initial covariance: velocity sigma (m/s), misalignment sigmas (3,) rad."""
         d = np.zeros(self.n)
         d[self.i_v] = sigma_v ** 2
         d[self.i_phi] = np.asarray(sigma_phi, dtype=float) ** 2

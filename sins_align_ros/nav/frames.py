@@ -248,7 +248,7 @@ def euler_cov_from_phi_cov(euler, P_phi):
     if euler.ndim == 1:
         J = phi_to_euler_jacobian(euler)
         return J @ P_phi @ J.T
-    r, p, y = euler[:, 0], euler[:, 1], euler[:, 2]
+    p, y = euler[:, 1], euler[:, 2]
     cy, sy, cp, sp = np.cos(y), np.sin(y), np.cos(p), np.sin(p)
     # closed-form inverse of E = [[cy cp, -sy, 0], [sy cp, cy, 0], [-sp, 0, 1]]
     J = np.zeros((len(euler), 3, 3))

@@ -1,0 +1,105 @@
+"""Seed 002 error models: structure (eq. 6, 16), observability (eq. 9-10), and agreement
+of the linear model with the mechanization it describes."""
+import numpy as np
+import pytest
+from scipy.linalg import expm
+
+from sins_align_ros.filters import kf
+from sins_align_ros.models.stationary import StationaryModel, limits
+from sins_align_ros.nav import earth
+from sins_align_ros.nav.frames import ARCMIN, DEG, attitude_error, euler_to_dcm, rotvec_to_dcm
+from sins_align_ros.nav.mechanization import StationaryStrapdown
+from sins_align_ros.sim.imu import DPH, UG, ImuSimulator, ImuSpec
+from sins_align_ros.sim.trajectory import Trajectory
+
+LAT = 34.0 * DEG
+
+
+def observability_rank(F, H):
+    n = F.shape[0]
+    O = np.vstack([H @ np.linalg.matrix_power(F, k) for k in range(n)])
+    return np.linalg.matrix_rank(O, tol=1e-9 * np.abs(O).max())
+
+
+def test_reduced7_is_seed002_eq16():
+    g = 9.8
+    F = StationaryModel('reduced7').F(np.eye(3), LAT, g)
+    wN, wU = earth.OMEGA_IE * np.cos(LAT), earth.OMEGA_IE * np.sin(LAT)
+    expected = np.zeros((7, 7))
+    expected[0, 3] = -g
+    expected[1, 2] = g
+    expected[2, 3], expected[2, 4] = wU, -wN
+    expected[3, 2], expected[3, 5] = -wU, -1.0
+    expected[4, 2], expected[4, 6] = wN, -1.0
+    assert F == pytest.approx(expected)
+
+
+def test_observability_ranks():
+    """Seed 002 eq. 10: the 12-state model has rank 9; the reduced model is observable."""
+    C = euler_to_dcm([0.01, -0.02, 0.7])
+    m12 = StationaryModel('stationary12')
+    F12 = m12.F(C, LAT, 9.8)
+    assert observability_rank(F12, m12.H()) == 9
+    m7 = StationaryModel('reduced7')
+    assert observability_rank(m7.F(C, LAT, 9.8), m7.H()) == 7
+
+
+@pytest.mark.parametrize('name', ['stationary12', 'stationary10', 'reduced7'])
+def test_linear_model_predicts_the_mechanization_errors(name):
+    """Propagate a misalignment and biases with expm(F T) and with the mechanization."""
+    m = StationaryModel(name)
+    traj = Trajectory(34.0, 75.0, 100.0, heading_deg=30.0)
+    a_b = np.array([50.0, -80.0, 30.0]) * UG
+    eps_b = np.array([0.02, -0.01, 0.03]) * DPH
+    spec = ImuSpec(gyro_bias_dph=eps_b / DPH, accel_bias_ug=a_b / UG)
+    sim = ImuSimulator(traj, spec, 100.0)
+    e0, _, p0 = sim.initial_truth()
+    chunk = sim.next_chunk(6000)                       # 60 s
+    C_true = euler_to_dcm(e0)
+    phi0 = np.array([2e-4, -3e-4, 2e-3])
+    mech = StationaryStrapdown(rotvec_to_dcm(-phi0) @ C_true, *p0,
+                               coriolis=m.mech.coriolis, hold_vertical=m.mech.hold_vertical)
+    out = mech.run(chunk.dtheta, chunk.dv, 0.01)
+    g = earth.gravity(p0[0], p0[2])
+    x0 = np.zeros(m.n)
+    x0[m.i_phi] = phi0
+    a_n, e_n = C_true @ a_b, C_true @ eps_b
+    if name == 'stationary12':
+        x0[6:9], x0[9:12] = a_b, eps_b
+    elif name == 'stationary10':
+        x0[5:7], x0[7:10] = a_b[:2], eps_b
+    else:
+        x0[5:7] = e_n[1:]
+    x = expm(m.F(C_true, p0[0], g) * 60.0) @ x0
+    if name == 'reduced7':                             # eq. 15: a_E, a_N, eps_E are absent
+        x = x.copy()
+        x[0] += a_n[0] * 60.0
+        x[1] += a_n[1] * 60.0
+    err = attitude_error(out['C_b_n'][-1], euler_to_dcm(chunk.euler[-1]))
+    v = out['v_n'][-1][m.meas]
+    assert v == pytest.approx(x[m.i_v], rel=0.02, abs=2e-4)
+    tol = 0.05 * np.abs(x[m.i_phi]) + (3e-5 if name == 'reduced7' else 2e-6)
+    assert np.all(np.abs(err - x[m.i_phi]) < tol)
+
+
+def test_discretize_matches_closed_form_for_a_random_walk():
+    F = np.zeros((1, 1))
+    Phi, Qd = kf.discretize(F, np.eye(1), np.eye(1) * 4.0, 0.5)
+    assert Phi == pytest.approx(np.eye(1)) and Qd == pytest.approx(np.array([[2.0]]))
+    F = np.array([[0.0, 1.0], [0.0, 0.0]])            # integrated random walk
+    Phi, Qd = kf.discretize(F, np.array([[0.0], [1.0]]), np.eye(1), 2.0)
+    assert Qd == pytest.approx(np.array([[8 / 3, 2.0], [2.0, 2.0]]))
+
+
+def test_kalman_update_is_the_textbook_scalar_case():
+    x, P = np.array([1.0]), np.array([[4.0]])
+    x2, P2, y, S = kf.update(x, P, np.array([3.0]), np.eye(1), np.array([[1.0]]))
+    assert x2 == pytest.approx([1.0 + 0.8 * 2.0]) and P2 == pytest.approx(np.array([[0.8]]))
+    assert kf.nis(y, S) == pytest.approx(4.0 / 5.0)
+
+
+def test_limits():
+    tilt, head, noise = limits(LAT, 100 * UG, 0.01 * DPH, 0.001 * DEG / 60, 540.0)
+    assert tilt / ARCMIN == pytest.approx(0.3441, rel=1e-3)   # 100 ug
+    assert head / ARCMIN == pytest.approx(2.757, rel=1e-3)    # 0.01 deg/h at 34 deg
+    assert noise / ARCMIN == pytest.approx(0.712, rel=1e-2)
