@@ -17,8 +17,8 @@ LAT = 34.0 * DEG
 
 def observability_rank(F, H):
     n = F.shape[0]
-    O = np.vstack([H @ np.linalg.matrix_power(F, k) for k in range(n)])
-    return np.linalg.matrix_rank(O, tol=1e-9 * np.abs(O).max())
+    obs = np.vstack([H @ np.linalg.matrix_power(F, k) for k in range(n)])
+    return np.linalg.matrix_rank(obs, tol=1e-9 * np.abs(obs).max())
 
 
 def test_reduced7_is_seed002_eq16():

@@ -11,7 +11,7 @@ import yaml
 
 rclpy = pytest.importorskip('rclpy')
 
-from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
 from geometry_msgs.msg import TwistWithCovarianceStamped  # noqa: E402
 from nav_msgs.msg import Odometry  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
@@ -153,6 +153,10 @@ def test_invalid_parameters_are_refused_with_a_reason(ros_context):
     assert not res.successful and 'fine_filter' in res.reason
     res = node.set_parameters([Parameter('initial_latitude_deg', value=95.0)])[0]
     assert not res.successful
+    res = node.set_parameters([Parameter('fine_filter', value='asckf')])[0]
+    assert not res.successful and 'not available' in res.reason
+    res = node.set_parameters([Parameter('fine_filter', value='stationary12')])[0]
+    assert res.successful and node.pipeline.model.name == 'stationary12'
 
 
 def test_alignment_node_reports_waiting_then_counts_imu(ros_context):
@@ -167,9 +171,91 @@ def test_alignment_node_reports_waiting_then_counts_imu(ros_context):
     assert spin_until(ex, lambda: rec.msgs['diag'], timeout_s=10.0)
     st = rec.msgs['diag'][0].status[0]
     assert st.name == 'alignment_node: alignment' and 'waiting' in st.message
+    assert st.level == DiagnosticStatus.WARN
     ex.add_node(sim)
     assert spin_until(ex, lambda: node.counts['imu'] > 300, timeout_s=30.0)
-    assert node.counts['imu_rejected'] == 0
+    assert node.input.rejected == 0
+    ex.shutdown()
+
+
+def _diag_values(msg):
+    return {kv.key: kv.value for kv in msg.status[0].values}
+
+
+@pytest.mark.slow
+def test_end_to_end_simulator_and_alignment_node_against_truth(ros_context, domain_id):
+    """Issue 3 must-show 4: static navigation grade, accelerated, phases in order, truth.
+
+    The simulator runs as its own process (as with ros2 run); the alignment node and
+    the observer share this test's executor.
+    """
+    from sins_align_ros.align.limits import scenario_limits
+    from sins_align_ros.nav.frames import ARCMIN, attitude_error, quat_to_dcm
+    from sins_align_ros.sim.presets import scenario
+    node = AlignmentNode(context=ros_context, parameter_overrides=[
+        Parameter('diagnostic_period', value=0.25), Parameter('coarse_duration', value=30.0),
+        Parameter('imu_frame_id', value='imu_link')])
+    obs = rclpy.create_node('observer', context=ros_context)
+    qos = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
+    out, truth, diag = [], [], []
+    obs.create_subscription(Imu, 'imu/data', out.append, qos)
+    obs.create_subscription(Odometry, 'sim/truth', truth.append, qos)
+    obs.create_subscription(DiagnosticArray, '/diagnostics', diag.append, qos)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(node)
+    ex.add_node(obs)
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id),
+               ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    sim = subprocess.Popen([resolve_executable('simulator_node'), '--ros-args',
+                            '-p', 'scenario:=static_navigation', '-p', 'duration:=200.0',
+                            '-p', 'real_time_factor:=20.0', '-p', 'seed:=4',
+                            '-p', 'start_time:=2000.0', '-p', 'shutdown_when_done:=true'],
+                           env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        assert spin_until(ex, lambda: sim.poll() is not None, timeout_s=120.0)
+        spin_until(ex, lambda: out and stamp_to_ns(out[-1].header.stamp) == 2200 * 10 ** 9,
+                   timeout_s=5.0)
+    finally:
+        if sim.poll() is None:
+            sim.kill()
+    assert sim.returncode == 0, sim.stderr.read()
+    phases = [_diag_values(m).get('phase') for m in diag]
+    seen = [p for i, p in enumerate(phases) if i == 0 or p != phases[i - 1]]
+    assert seen[0] in ('waiting', 'coarse') and 'fine' in seen
+    order = {'waiting': 0, 'coarse': 1, 'fine': 2, 'aligned': 3}
+    assert [order[p] for p in seen] == sorted(order[p] for p in seen)
+    assert out[0].orientation_covariance[0] == -1.0            # unknown during coarse
+    last = out[-1]
+    assert stamp_to_ns(last.header.stamp) == 2200 * 10 ** 9
+    tq = {stamp_to_ns(m.header.stamp): m.pose.pose.orientation for m in truth}[
+        stamp_to_ns(last.header.stamp)]
+    q = last.orientation
+    err = attitude_error(quat_to_dcm([q.x, q.y, q.z, q.w]), quat_to_dcm([tq.x, tq.y, tq.z, tq.w]))
+    # T: fine time at least (discovery may eat the first seconds of the stream)
+    band = scenario_limits(scenario('static_navigation'), 130.0).tolerance()
+    assert np.all(np.abs(err) <= band), (err / ARCMIN, band / ARCMIN)
+    cov = np.array(last.orientation_covariance).reshape(3, 3)
+    assert np.all(np.abs(err) <= 3 * np.sqrt(np.diag(cov)))
+    vals = _diag_values(diag[-1])
+    assert vals['position_source'] == 'gnss'
+    assert int(vals['imu_rejected_count']) == 0 and int(vals.get('imu_gap', 0)) == 0
+    ex.shutdown()
+
+
+def test_reset_service_restarts_alignment(ros_context):
+    from std_srvs.srv import Trigger
+    node = AlignmentNode(context=ros_context)
+    client_node = rclpy.create_node('client', context=ros_context)
+    cli = client_node.create_client(Trigger, 'alignment_node/reset')
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(node)
+    ex.add_node(client_node)
+    assert spin_until(ex, lambda: cli.service_is_ready(), timeout_s=10.0)
+    node.pipeline.phase = 'fine'
+    fut = cli.call_async(Trigger.Request())
+    assert spin_until(ex, fut.done, timeout_s=10.0)
+    assert fut.result().success
+    assert node.pipeline.phase == 'waiting'
     ex.shutdown()
 
 

@@ -3,10 +3,9 @@ import numpy as np
 import pytest
 
 from sins_align_ros.align.pipeline import (ALIGNED, COARSE, FINE, AlignmentPipeline, Output)
-from sins_align_ros.models.stationary import limits
+from sins_align_ros.align.limits import scenario_limits
 from sins_align_ros.nav.frames import (ARCMIN, DEG, attitude_error, euler_error, euler_to_dcm,
                                        quat_to_dcm, rotvec_to_dcm)
-from sins_align_ros.sim.imu import DPH, DPSH, UG
 from sins_align_ros.sim.presets import SENSOR_GRADES, misalignment_rad, scenario
 from sins_align_ros.sim.scenario import ScenarioStream
 
@@ -23,15 +22,7 @@ def simulate(name, seed=1, seconds=None, **overrides):
 
 def limit_band(sc, T):
     """Per-axis tolerance (east, north, up): 1.2 x bias term + 3 x noise term."""
-    lat = sc.trajectory.lat_deg * DEG
-    s = sc.imu
-    C = euler_to_dcm(sc.trajectory.kinematics(0.0).euler[0])
-    eps_e = abs((C @ np.broadcast_to(s.gyro_bias_dph, (3,)))[0]) * DPH
-    tilt, head, noise = limits(lat, np.max(s.accel_bias_ug) * UG, eps_e,
-                               s.gyro_arw_dpsh * DPSH, T)
-    tilt_noise = s.accel_vrw_ug_rthz * UG / 9.8 / np.sqrt(T)
-    return np.array([1.2 * tilt + 3 * tilt_noise, 1.2 * tilt + 3 * tilt_noise,
-                     1.2 * head + 3 * noise])
+    return scenario_limits(sc, T).tolerance()
 
 
 @pytest.mark.slow
@@ -116,7 +107,8 @@ def test_mems_gyro_is_reported_unable_to_gyrocompass():
     sc, st, b = simulate('static_mems', seconds=80.0)
     s = sc.imu
     p = AlignmentPipeline({'initial_latitude_deg': 34.0, 'use_gnss_position': False,
-                           'gyro_bias_dph': float(s.gyro_bias_dph), 'gyro_arw_dpsh': s.gyro_arw_dpsh,
+                           'gyro_bias_dph': float(s.gyro_bias_dph),
+                           'gyro_arw_dpsh': s.gyro_arw_dpsh,
                            'accel_bias_ug': float(s.accel_bias_ug),
                            'accel_vrw_ug_rthz': s.accel_vrw_ug_rthz})
     p.start_clock(0.0)

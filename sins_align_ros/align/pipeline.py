@@ -12,7 +12,8 @@ the zero-velocity Kalman filter is updated and its misalignment and velocity
 estimates are fed back into the mechanization. When the heading uncertainty
 has converged the filter is re-initialised (bias states restart from their
 prior): seed 002's closing suggestion of staged re-initialisation, which
-removes the error that the first transient leaves in the bias estimates. After ``max_stages`` stages
+removes the error that the first transient leaves in the bias estimates.
+After ``max_stages`` stages
 the phase becomes ``aligned`` (the filter keeps refining).
 """
 from collections import deque
@@ -24,7 +25,8 @@ from . import params as prm
 from ..filters import kf
 from ..models.stationary import NoiseSpec, StationaryModel
 from ..nav import coarse, earth
-from ..nav.frames import DEG, dcm_to_euler, dcm_to_quat, euler_cov_from_phi_cov, rotvec_to_dcm
+from ..nav.frames import (DEG, dcm_to_euler, dcm_to_quat, euler_cov_from_phi_cov,
+                          euler_sigma_one, rotvec_to_dcm)
 from ..nav.mechanization import StationaryStrapdown
 
 WAITING, COARSE, FINE, ALIGNED = 'waiting', 'coarse', 'fine', 'aligned'
@@ -137,7 +139,8 @@ class AlignmentPipeline:
                                accel_bias=cfg['accel_bias_ug'] * _UG,
                                accel_vrw=cfg['accel_vrw_ug_rthz'] * _UG)
         self.model = StationaryModel(cfg["fine_filter"])
-        self._fix = None
+        #: the last valid GNSS fix (t, lat_deg, lon_deg, h), kept across resets
+        self.last_fix = None
         self.reset('start')
 
     # -- state ------------------------------------------------------------------
@@ -166,12 +169,16 @@ class AlignmentPipeline:
         self._last_row = None
 
     def position_fix(self, t, lat_deg, lon_deg, h):
-        """Record a valid GNSS position (deg, deg, m); used if fine alignment has not started."""
-        self._fix = (float(t), float(lat_deg), float(lon_deg), float(h))
+        """Record a valid GNSS position (deg, deg, m).
+
+        The position is fixed when coarse alignment ends (the stationary models
+        keep it constant, seed 002 Table 1); the latest fix before that is used.
+        """
+        self.last_fix = (float(t), float(lat_deg), float(lon_deg), float(h))
 
     def _choose_position(self):
-        if self.cfg['use_gnss_position'] and self._fix is not None:
-            _, la, lo, h = self._fix
+        if self.cfg['use_gnss_position'] and self.last_fix is not None:
+            _, la, lo, h = self.last_fix
             self.position_source = 'gnss'
         else:
             la, lo, h = (self.cfg['initial_latitude_deg'], self.cfg['initial_longitude_deg'],
@@ -203,7 +210,6 @@ class AlignmentPipeline:
                     self.t_last = t[i] - self._dt_guess(t, i)
                 self.phase = COARSE
                 self.t_first = self.t_last
-                self._choose_position()
             if self.phase == COARSE:
                 j = i
                 need = self.cfg['coarse_duration'] - self._coarse_T
@@ -223,6 +229,8 @@ class AlignmentPipeline:
                 continue
             # fine / aligned: mechanize up to the next filter epoch
             period = 1.0 / self.cfg['fine_update_hz']
+            if n == 1:
+                return self._one(t[0], dtheta[0], dv[0], period)
             j = i
             acc = self._since_update
             while j < n:
@@ -241,6 +249,22 @@ class AlignmentPipeline:
             outs.append(_Rows(t[i:j], res['C_b_n'], self.attitude_cov(), self.phase))
             i = j
         return _assemble(outs)
+
+    def _one(self, t, dtheta, dv, period):
+        """Single-sample fine step with scalar arithmetic (the live node's path)."""
+        dt = t - self.t_last
+        C = self.mech.step(dtheta, dv, dt)
+        self.t_last = t
+        self._since_update += dt
+        if self._since_update >= period - 1e-9:
+            self._filter_step(self._since_update)
+            self._since_update = 0.0
+            C = self.mech.C_b_n
+        P = self.attitude_cov()
+        eul = dcm_to_euler(C)
+        return Output(np.array([t]), dcm_to_quat(C)[None], eul[None],
+                      euler_sigma_one(eul, P.tolist())[None], P[None],
+                      np.array([self.phase], dtype=object))
 
     def start_clock(self, t0):
         """Set the stamp that the first increment starts from (before the first process call)."""
@@ -272,6 +296,7 @@ class AlignmentPipeline:
         dvv = np.concatenate([c[2] for c in self._coarse])
         dts = np.diff(np.concatenate([[self.t_first], tt]))
         self._coarse = []
+        self._choose_position()          # a GNSS fix may have come in during coarse
         lat, _, h = self.position
         method = self.cfg['coarse_method']
         moving, rate_sc, tilt_sc = coarse.detect_motion(dth, dvv, dts, self.noise.gyro_arw,

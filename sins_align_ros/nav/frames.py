@@ -22,6 +22,8 @@ Conventions (DESIGN.md):
 Shapes: functions accept a single angle triple (3,) or a stack (N, 3); DCMs are
 (3, 3) or (N, 3, 3); quaternions (4,) or (N, 4).
 """
+import math
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -91,6 +93,10 @@ def dcm_to_euler(C_b_n):
     ``p = -asin(C20)``, ``y = atan2(C10, C00)`` (vectorised, (..., 3, 3) -> (..., 3)).
     """
     C = np.asarray(C_b_n, dtype=float)
+    if C.ndim == 2:                      # scalar fast path (live node, one sample)
+        return np.array([math.atan2(C[2, 1], C[2, 2]),
+                         -math.asin(min(1.0, max(-1.0, C[2, 0]))),
+                         math.atan2(C[1, 0], C[0, 0])])
     roll = np.arctan2(C[..., 2, 1], C[..., 2, 2])
     pitch = -np.arcsin(np.clip(C[..., 2, 0], -1.0, 1.0))
     yaw = np.arctan2(C[..., 1, 0], C[..., 0, 0])
@@ -113,6 +119,8 @@ def dcm_to_quat(C_b_n):
     Shepperd's method, vectorised over (..., 3, 3); the input must be orthonormal.
     """
     C = np.asarray(C_b_n, dtype=float)
+    if C.ndim == 2:
+        return _dcm_to_quat_one(C.ravel().tolist())
     tr = C[..., 0, 0] + C[..., 1, 1] + C[..., 2, 2]
     cand = np.stack([tr, C[..., 0, 0], C[..., 1, 1], C[..., 2, 2]], axis=-1)
     k = np.argmax(cand, axis=-1)
@@ -135,6 +143,28 @@ def dcm_to_quat(C_b_n):
             q = np.where((k == i)[..., None], qi, q)
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     return np.where(q[..., 3:4] < 0.0, -q, q)
+
+
+def _dcm_to_quat_one(c):
+    """Shepperd's method on one row-major DCM (9 floats), scalar arithmetic."""
+    c00, c01, c02, c10, c11, c12, c20, c21, c22 = c
+    tr = c00 + c11 + c22
+    k = max(range(4), key=(tr, c00, c11, c22).__getitem__)
+    if k == 0:
+        s = 2.0 * math.sqrt(max(1.0 + tr, 0.0))
+        q = ((c21 - c12) / s, (c02 - c20) / s, (c10 - c01) / s, 0.25 * s)
+    elif k == 1:
+        s = 2.0 * math.sqrt(max(1.0 + c00 - c11 - c22, 0.0))
+        q = (0.25 * s, (c01 + c10) / s, (c02 + c20) / s, (c21 - c12) / s)
+    elif k == 2:
+        s = 2.0 * math.sqrt(max(1.0 - c00 + c11 - c22, 0.0))
+        q = ((c01 + c10) / s, 0.25 * s, (c12 + c21) / s, (c02 - c20) / s)
+    else:
+        s = 2.0 * math.sqrt(max(1.0 - c00 - c11 + c22, 0.0))
+        q = ((c02 + c20) / s, (c12 + c21) / s, 0.25 * s, (c10 - c01) / s)
+    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    sign = -1.0 if q[3] < 0.0 else 1.0
+    return np.array([sign * q[0] / n, sign * q[1] / n, sign * q[2] / n, sign * q[3] / n])
 
 
 def quat_to_dcm(q):
@@ -239,6 +269,24 @@ def phi_to_euler_jacobian(euler):
     return np.linalg.inv(E)
 
 
+def euler_sigma_one(euler, P_phi):
+    """1-sigma of REP-103 Euler angles (3,) for one attitude, scalar arithmetic.
+
+    Same result as ``sqrt(diag(euler_cov_from_phi_cov(euler, P_phi)))``.
+    """
+    _, p, y = euler
+    cy, sy, cp, sp = math.cos(y), math.sin(y), math.cos(p), math.sin(p)
+    P = P_phi
+    rows = ((cy / cp, sy / cp, 0.0), (-sy, cy, 0.0), (cy * sp / cp, sy * sp / cp, 1.0))
+    out = []
+    for a, b, c in rows:
+        v = (a * (a * P[0][0] + b * P[0][1] + c * P[0][2])
+             + b * (a * P[1][0] + b * P[1][1] + c * P[1][2])
+             + c * (a * P[2][0] + b * P[2][1] + c * P[2][2]))
+        out.append(math.sqrt(v) if v > 0.0 else 0.0)
+    return np.array(out)
+
+
 def euler_cov_from_phi_cov(euler, P_phi):
     """Covariance of REP-103 Euler angles from a nav-frame misalignment covariance.
 
@@ -246,9 +294,10 @@ def euler_cov_from_phi_cov(euler, P_phi):
     """
     euler = np.asarray(euler, dtype=float)
     if euler.ndim == 1:
-        J = phi_to_euler_jacobian(euler)
-        return J @ P_phi @ J.T
+        return euler_cov_from_phi_cov(euler[None], P_phi)[0]
     p, y = euler[:, 1], euler[:, 2]
+    if np.ndim(P_phi) == 2:
+        P_phi = np.broadcast_to(P_phi, (len(euler), 3, 3))
     cy, sy, cp, sp = np.cos(y), np.sin(y), np.cos(p), np.sin(p)
     # closed-form inverse of E = [[cy cp, -sy, 0], [sy cp, cy, 0], [-sp, 0, 1]]
     J = np.zeros((len(euler), 3, 3))
@@ -259,4 +308,4 @@ def euler_cov_from_phi_cov(euler, P_phi):
     J[:, 2, 0] = cy * sp / cp
     J[:, 2, 1] = sy * sp / cp
     J[:, 2, 2] = 1.0
-    return np.einsum('kij,kjl,kml->kim', J, np.broadcast_to(P_phi, J.shape), J)
+    return np.einsum('kij,kjl,kml->kim', J, P_phi, J)

@@ -1,97 +1,216 @@
-"""alignment_node: SINS initial alignment from sensor_msgs/Imu (and GNSS).
+"""alignment_node: SINS initial alignment from sensor_msgs/Imu (and GNSS position).
 
-This first version is the node shell of DESIGN.md: it declares the shared
-parameters, subscribes to ``imu/data_raw`` (sensor-data QoS) and ``gnss/fix``,
-checks and counts the input, and publishes ``/diagnostics`` in
-diagnostic_updater's layout (status name ``<node>: alignment``) with the
-phase ``waiting``. The alignment pipeline (coarse -> fine -> aligned) plugs
-in behind the same topics.
+Subscribes ``imu/data_raw`` (sensor_msgs/Imu; best effort with a deep queue so
+it takes both best-effort and reliable publishers) and ``gnss/fix``. Every IMU
+sample goes through :class:`~sins_align_ros.align.imu_input.ImuInput` (input
+checks) and :class:`~sins_align_ros.align.pipeline.AlignmentPipeline` — the
+same objects the replay tool uses — and produces:
+
+* ``imu/data`` (sensor_msgs/Imu): the input rates plus the orientation body ->
+  ENU with ``orientation_covariance`` = the filter's misalignment covariance
+  about the ENU axes (rad^2); until coarse alignment is done the orientation is
+  marked unknown (``orientation_covariance[0] = -1``, REP-145);
+* ``~/euler`` (geometry_msgs/Vector3Stamped): REP-103 roll, pitch, yaw in rad;
+* ``/diagnostics`` (diagnostic_msgs/DiagnosticArray, status ``<node>: alignment``).
+
+Service ``~/reset`` (std_srvs/Trigger) restarts the alignment in any phase.
+Changing an alignment parameter at runtime restarts the alignment with it.
 """
 import sys
 
+import numpy as np
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import SetParametersResult
+from geometry_msgs.msg import Vector3Stamped
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
+from std_srvs.srv import Trigger
 
-from .conversions import finite, stamp_to_ns
+from .conversions import stamp_to_sec
 from .params import Param, declare
+from ..align import params as prm
+from ..align.imu_input import OK, RESET, START, ImuInput
+from ..align.pipeline import COARSE, WAITING, AlignmentPipeline
 
-FINE_FILTERS = ('reduced7', 'stationary10', 'stationary12', 'ckf', 'asckf', 'ukf',
-                'vbakf', 'mvbakf', 'vbckf', 'vbch')
-COARSE_METHODS = ('auto', 'analytic', 'inertial_frame')
-
-PARAMS = (
-    Param('fine_filter', 'reduced7', 'fine-alignment filter', choices=FINE_FILTERS),
-    Param('coarse_method', 'auto', 'coarse alignment method', choices=COARSE_METHODS),
-    Param('coarse_duration', 60.0, 'coarse alignment time, s', 1.0, 3600.0),
-    Param('initial_latitude_deg', 0.0, 'latitude used without a GNSS fix, deg', -90.0, 90.0),
-    Param('initial_longitude_deg', 0.0, 'longitude used without a GNSS fix, deg', -180.0, 180.0),
-    Param('initial_height_m', 0.0, 'height used without a GNSS fix, m', -1000.0, 50000.0),
+NODE_PARAMS = (
     Param('imu_frame_id', '', 'expected frame_id of imu/data_raw (empty: accept any)'),
     Param('diagnostic_period', 1.0, 'period of /diagnostics, s', 0.05, 60.0),
 )
+PARAMS = prm.ALIGNMENT_PARAMS + NODE_PARAMS
+_ALIGN_NAMES = {p.name for p in prm.ALIGNMENT_PARAMS}
 
 
 class AlignmentNode(Node):
-    """Subscribes to IMU and GNSS, publishes diagnostics; see the module docstring."""
+    """Thin ROS shell around the alignment pipeline; see the module docstring."""
 
     def __init__(self, **kwargs):
         super().__init__('alignment_node', **kwargs)
         self.p = declare(self, PARAMS)
-        imu_qos = QoSProfile(depth=200, reliability=ReliabilityPolicy.BEST_EFFORT,
-                             history=HistoryPolicy.KEEP_LAST,
-                             durability=qos_profile_sensor_data.durability)
+        self._align_values = {k: v for k, v in self.p.items() if k in _ALIGN_NAMES}
+        self.pipeline = AlignmentPipeline(self._align_values)   # ValueError: refused
+        self.input = ImuInput(self.p['max_gap'])
+        self.add_on_set_parameters_callback(self._check_pipeline_params)
+        self.add_post_set_parameters_callback(self._apply_params)
+        imu_qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT,
+                             history=HistoryPolicy.KEEP_LAST)
         self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_qos)
         self.create_subscription(NavSatFix, 'gnss/fix', self._on_fix, qos_profile_sensor_data)
+        self.pub_imu = self.create_publisher(Imu, 'imu/data', 50)
+        self.pub_euler = self.create_publisher(Vector3Stamped, '~/euler', 50)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        self.counts = {'imu': 0, 'imu_rejected': 0, 'gnss': 0, 'gnss_no_fix': 0}
-        self.last_imu_ns = None
-        self.first_imu_ns = None
-        self.phase = 'waiting'
-        self.create_timer(self.p['diagnostic_period'], self._publish_diagnostics)
+        self.create_service(Trigger, '~/reset', self._on_reset)
+        self.counts = {'imu': 0, 'wrong_frame': 0, 'gnss': 0, 'gnss_no_fix': 0}
+        self._last_imu_wall = None
+        self._events = []
+        self._diag_timer = self.create_timer(self.p['diagnostic_period'],
+                                             self._publish_diagnostics)
+        self.get_logger().info(
+            f"fine filter {self.pipeline.model.name}, coarse {self.p['coarse_method']} "
+            f"{self.p['coarse_duration']:.0f} s; waiting for imu/data_raw")
 
-    def _on_imu(self, msg):
-        t_ns = stamp_to_ns(msg.header.stamp)
-        w, a = msg.angular_velocity, msg.linear_acceleration
-        if not finite(w.x, w.y, w.z, a.x, a.y, a.z) or (
-                self.last_imu_ns is not None and t_ns <= self.last_imu_ns):
-            self.counts['imu_rejected'] += 1
-            return
-        if self.first_imu_ns is None:
-            self.first_imu_ns = t_ns
-        self.last_imu_ns = t_ns
-        self.counts['imu'] += 1
+    # -- parameters -------------------------------------------------------------------
+    def _check_pipeline_params(self, changes):
+        new = dict(self._align_values)
+        new.update({c.name: c.value for c in changes if c.name in _ALIGN_NAMES})
+        try:
+            prm.validate(new)
+        except ValueError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def _apply_params(self, changes):
+        names = [c.name for c in changes if c.name in _ALIGN_NAMES]
+        for c in changes:
+            self.p[c.name] = c.value
+            if c.name in _ALIGN_NAMES:
+                self._align_values[c.name] = c.value
+        if names:
+            self._restart(f'parameters changed: {", ".join(names)}')
+            self.input.max_gap = self.p['max_gap']
+
+    def _restart(self, reason, level='info', restart_clock=True):
+        """Start a new pipeline with the current parameters (keeping the last GNSS fix)."""
+        fix = self.pipeline.last_fix
+        self.pipeline = AlignmentPipeline(self._align_values)
+        self.pipeline.last_fix = fix
+        if restart_clock:
+            self.input.restart()
+        self._event(f'alignment restarted: {reason}', level)
+
+    def _event(self, text, level='info'):
+        getattr(self.get_logger(), level)(text)
+        self._events.append(text)
+
+    # -- callbacks -------------------------------------------------------------------
+    def _on_reset(self, request, response):
+        self._restart('~/reset service')
+        response.success = True
+        response.message = 'alignment restarted; waiting for IMU data'
+        return response
 
     def _on_fix(self, msg):
-        if msg.status.status < NavSatStatus.STATUS_FIX:
-            self.counts['gnss_no_fix'] += 1
-        else:
+        ok = (msg.status.status >= NavSatStatus.STATUS_FIX
+              and np.isfinite([msg.latitude, msg.longitude, msg.altitude]).all())
+        if ok:
             self.counts['gnss'] += 1
+            self.pipeline.position_fix(stamp_to_sec(msg.header.stamp), msg.latitude,
+                                       msg.longitude, msg.altitude)
+        else:
+            self.counts['gnss_no_fix'] += 1
 
+    def _on_imu(self, msg):
+        self._last_imu_wall = self.get_clock().now()
+        frame = self.p['imu_frame_id']
+        if frame and msg.header.frame_id != frame:
+            self.counts['wrong_frame'] += 1
+            self.get_logger().warn(f"imu/data_raw frame_id '{msg.header.frame_id}' is not "
+                                   f"'{frame}': sample skipped", throttle_duration_sec=5.0)
+            return
+        t = stamp_to_sec(msg.header.stamp)
+        w, a = msg.angular_velocity, msg.linear_acceleration
+        action, dth, dv = self.input.push(t, (w.x, w.y, w.z), (a.x, a.y, a.z))
+        if action == OK:
+            self.counts['imu'] += 1
+            out = self.pipeline.process(t, dth, dv)
+            self._publish(msg, out)
+        elif action == START:
+            self.pipeline.start_clock(t)
+        elif action == RESET:
+            self._restart(self.input.last_reason, 'warn', restart_clock=False)
+            self.pipeline.start_clock(t)
+        else:
+            self.get_logger().warn(f'imu/data_raw: {self.input.last_reason}; sample skipped',
+                                   throttle_duration_sec=5.0)
+
+    def _publish(self, msg, out):
+        m = Imu()
+        m.header = msg.header
+        m.angular_velocity = msg.angular_velocity
+        m.angular_velocity_covariance = msg.angular_velocity_covariance
+        m.linear_acceleration = msg.linear_acceleration
+        m.linear_acceleration_covariance = msg.linear_acceleration_covariance
+        q = out.q[-1]
+        if np.isfinite(q[0]):
+            m.orientation.x, m.orientation.y, m.orientation.z, m.orientation.w = (
+                float(q[0]), float(q[1]), float(q[2]), float(q[3]))
+            m.orientation_covariance = [float(v) for v in out.P_phi[-1].ravel()]
+            e = Vector3Stamped()
+            e.header = msg.header
+            e.vector.x, e.vector.y, e.vector.z = (float(v) for v in out.euler[-1])
+            self.pub_euler.publish(e)
+        else:
+            m.orientation_covariance[0] = -1.0
+        self.pub_imu.publish(m)
+
+    # -- diagnostics -----------------------------------------------------------------
     def _publish_diagnostics(self):
         st = DiagnosticStatus()
         st.name = f'{self.get_name()}: alignment'
         st.hardware_id = self.p['imu_frame_id'] or 'imu'
-        if self.counts['imu'] == 0:
-            st.level = DiagnosticStatus.WARN
-            st.message = 'waiting for IMU data on imu/data_raw'
+        s = self.pipeline.status()
+        phase = s['phase']
+        counts = dict(self.input.counts)
+        level, msgs = DiagnosticStatus.OK, []
+        if phase == WAITING:
+            level = DiagnosticStatus.WARN
+            msgs.append('waiting for IMU data on imu/data_raw')
+        elif phase == COARSE:
+            msgs.append(f"coarse alignment {s['elapsed_s']:.0f}/{self.p['coarse_duration']:.0f} s")
         else:
-            st.level = DiagnosticStatus.OK
-            st.message = f'phase {self.phase}'
-        elapsed = 0.0
-        if self.first_imu_ns is not None:
-            elapsed = (self.last_imu_ns - self.first_imu_ns) * 1e-9
-        values = {'phase': self.phase, 'elapsed_s': f'{elapsed:.3f}',
-                  'fine_filter': self.p['fine_filter']}
-        values.update({f'{k}_count': str(v) for k, v in self.counts.items()})
-        st.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+            msgs.append(f"{phase}: 1-sigma roll {s['sigma_roll_deg'] * 60:.2f}', pitch "
+                        f"{s['sigma_pitch_deg'] * 60:.2f}', yaw {s['sigma_yaw_deg'] * 60:.2f}'")
+        if self._last_imu_wall is not None:
+            age = (self.get_clock().now() - self._last_imu_wall).nanoseconds * 1e-9
+            if age > max(2.0, 3 * self.p['diagnostic_period']):
+                level = DiagnosticStatus.ERROR
+                msgs.insert(0, f'no IMU data for {age:.1f} s')
+        for w in self.pipeline.warnings:
+            level = max(level, DiagnosticStatus.WARN)
+            msgs.append(w)
+        if self._events:
+            level = max(level, DiagnosticStatus.WARN)
+            msgs.append(self._events[-1])
+            self._events.clear()
+        st.level = level
+        st.message = '; '.join(msgs)
+        values = dict(s)
+        values.update({f'imu_{k}': v for k, v in counts.items()})
+        values.update({f'{k}_count': v for k, v in self.counts.items()})
+        values['imu_rejected_count'] = self.input.rejected + self.counts['wrong_frame']
+        st.values = [KeyValue(key=k, value=_fmt(v)) for k, v in values.items()]
         arr = DiagnosticArray()
         arr.header.stamp = self.get_clock().now().to_msg()
         arr.status = [st]
         self.pub_diag.publish(arr)
+
+
+def _fmt(v):
+    if isinstance(v, float):
+        return f'{v:.6g}'
+    return str(v)
 
 
 def main(args=None):

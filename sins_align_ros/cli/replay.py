@@ -1,0 +1,188 @@
+"""sins_align_replay: the alignment pipeline on recorded data, without a ROS graph.
+
+    sins_align_replay INPUT [--params FILE.yaml] [--set name=value ...] --out OUT.csv
+                      [--report OUT.png]
+
+INPUT is a rosbag2 (folder, .mcap or .db3) with ``imu/data_raw`` (and optionally
+``gnss/fix``, ``sim/truth``), or a PSINS ``.imu`` log. Parameters are the
+alignment node's (YAML in the ROS parameter-file layout or flat; ``--set``
+overrides). Errors end with one line on stderr and a non-zero exit code; what
+was computed before a fault in the input is still written.
+"""
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from ..align import params as prm
+from ..align.imu_input import OK, RESET, START, ImuInput
+from ..align.pipeline import AlignmentPipeline, Output
+from ..io.bag import BagError, iter_bag
+from ..io.psins import PsinsFormatError, read_psins
+from ..io.report import plot_report
+from ..io.results import write_csv
+from ..nav.frames import DEG, quat_to_euler, yaw_to_heading
+
+_CHUNK = 2000
+
+
+def _parser():
+    ap = argparse.ArgumentParser(prog='sins_align_replay',
+                                 description='Run the SINS alignment pipeline on a recording.')
+    ap.add_argument('input', help='rosbag2 folder / .mcap / .db3, or a PSINS .imu log')
+    ap.add_argument('--params', help='YAML parameter file (alignment_node layout or flat)')
+    ap.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
+                    help='override one parameter (repeatable)')
+    ap.add_argument('--out', required=True, help='result CSV')
+    ap.add_argument('--report', help='PNG figure: estimate (or error vs sim/truth) +/-3 sigma')
+    ap.add_argument('--every', type=int, default=1, help='write one CSV row in N (default 1)')
+    ap.add_argument('--imu-topic', default='imu/data_raw')
+    ap.add_argument('--fix-topic', default='gnss/fix')
+    ap.add_argument('--quiet', action='store_true')
+    return ap
+
+
+def load_parameters(params_file, sets):
+    """Parameter dict from a YAML file and ``name=value`` overrides, validated."""
+    values = {}
+    if params_file:
+        values.update(prm.load_yaml(params_file))
+    for item in sets:
+        if '=' not in item:
+            raise ValueError(f'--set expects name=value, got {item!r}')
+        k, v = item.split('=', 1)
+        values[k.strip()] = prm.parse_value(k.strip(), v.strip())
+    return prm.validate(values)
+
+
+def replay_psins(path, values, log):
+    """Run a PSINS log; returns (Output, pipeline)."""
+    rec = read_psins(path)
+    v = dict(values)
+    if 'initial_latitude_deg' not in v:
+        v.update(initial_latitude_deg=float(rec.pos0[0] / DEG),
+                 initial_longitude_deg=float(rec.pos0[1] / DEG),
+                 initial_height_m=float(rec.pos0[2]))
+        log(f'position from the PSINS header: {v["initial_latitude_deg"]:.6f} deg, '
+            f'{v["initial_longitude_deg"]:.6f} deg, {v["initial_height_m"]:.1f} m')
+    pipe = AlignmentPipeline(v)
+    pipe.start_clock(rec.t0)
+    return pipe.process(rec.t, rec.dtheta, rec.dv), pipe, None
+
+
+def replay_bag(path, values, args, log):
+    """Run a rosbag2; returns (Output, pipeline, truth) with truth (t, q) or None.
+
+    A fault part-way through raises :class:`BagError` with ``.partial`` set to the
+    (Output, pipeline, truth) computed so far.
+    """
+    pipe = AlignmentPipeline(values)
+    conv = ImuInput(values.get('max_gap', 0.5))
+    outs, buf, truth = [], [], []
+    pipe.input = conv
+
+    def flush():
+        if buf:
+            t = np.array([b[0] for b in buf])
+            outs.append(pipe.process(t, np.array([b[1] for b in buf]),
+                                     np.array([b[2] for b in buf])))
+            buf.clear()
+
+    try:
+        for ev in iter_bag(path, args.imu_topic, args.fix_topic):
+            if ev.kind == 'imu':
+                w, f, _ = ev.data
+                action, dth, dv = conv.push(ev.t, w, f)
+                if action == OK:
+                    buf.append((ev.t, dth, dv))
+                    if len(buf) >= _CHUNK:
+                        flush()
+                elif action in (RESET, START):
+                    flush()
+                    if action == RESET:
+                        log(f'{conv.last_reason}')
+                        pipe.reset(conv.last_reason)
+                    pipe.start_clock(ev.t)
+            elif ev.kind == 'fix':
+                status, lat, lon, h = ev.data
+                if status >= 0 and np.isfinite([lat, lon, h]).all():
+                    flush()
+                    pipe.position_fix(ev.t, lat, lon, h)
+            else:
+                truth.append((ev.t, ev.data[0]))
+        flush()
+    except BagError as exc:
+        flush()
+        exc.partial = (Output.concat(outs), pipe, truth)
+        raise
+    return Output.concat(outs), pipe, truth
+
+
+def _truth_euler(out, truth):
+    """Truth Euler angles at the output stamps (nearest earlier-or-equal truth sample)."""
+    if not truth:
+        return None
+    tt = np.array([t for t, _ in truth])
+    qq = np.array([q for _, q in truth])
+    idx = np.clip(np.searchsorted(tt, out.t + 1e-9) - 1, 0, len(tt) - 1)
+    return quat_to_euler(qq[idx])
+
+
+def _summary(out, pipe):
+    k = len(out.t) - 1
+    if k < 0:
+        return 'no IMU sample was processed'
+    if not np.isfinite(out.q[k, 0]):
+        return (f'no attitude yet: the recording ended in phase {out.phase[k]} '
+                f'({pipe.elapsed:.1f} s)')
+    e = np.degrees(out.euler[k])
+    s = np.degrees(out.sigma[k])
+    head = np.degrees(yaw_to_heading(out.euler[k, 2]))
+    return (f'final at t={out.t[k]:.3f}: roll {e[0]:.4f} pitch {e[1]:.4f} yaw {e[2]:.4f} deg '
+            f'(heading {head:.3f} deg from north); 1-sigma {s[0] * 60:.2f}\' '
+            f'{s[1] * 60:.2f}\' {s[2] * 60:.2f}\'; phase {out.phase[k]}')
+
+
+def main(argv=None):
+    """Entry point; returns the exit code (0 ok, 1 input fault, 2 usage/parameter error)."""
+    args = _parser().parse_args(argv)
+    log = (lambda m: None) if args.quiet else (lambda m: print(f'sins_align_replay: {m}',
+                                                               file=sys.stderr))
+    try:
+        values = load_parameters(args.params, args.set)
+    except (ValueError, OSError) as exc:
+        print(f'sins_align_replay: error: {exc}', file=sys.stderr)
+        return 2
+    status, truth = 0, None
+    try:
+        if Path(args.input).suffix.lower() == '.imu':
+            out, pipe, truth = replay_psins(args.input, values, log)
+        else:
+            out, pipe, truth = replay_bag(args.input, values, args, log)
+    except PsinsFormatError as exc:
+        print(f'sins_align_replay: error: {exc}', file=sys.stderr)
+        return 1
+    except BagError as exc:
+        print(f'sins_align_replay: error: {exc}', file=sys.stderr)
+        partial = getattr(exc, 'partial', None)
+        if partial is None:
+            return 1
+        out, pipe, truth = partial
+        status = 1
+    try:
+        write_csv(args.out, out, every=args.every)
+        if args.report and len(out.t):
+            plot_report(args.report, out, _truth_euler(out, truth),
+                        title=f'{Path(args.input).name}: {pipe.model.name}')
+    except OSError as exc:
+        print(f'sins_align_replay: error: cannot write output: {exc}', file=sys.stderr)
+        return 1
+    for w in pipe.warnings:
+        log(f'warning: {w}')
+    log(_summary(out, pipe))
+    return status
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,178 @@
+"""rosbag2 input (and output, for simulated recordings) with the ``rosbags`` library.
+
+No ROS graph and no rclpy: messages are read and written as CDR with the
+ROS 2 Jazzy type store. Topics are matched by name or by name suffix, so
+namespaced recordings (``/ship/imu/data_raw``) work without options.
+"""
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..nav import earth
+from ..nav.frames import euler_to_quat
+
+IMU_TYPE = 'sensor_msgs/msg/Imu'
+FIX_TYPE = 'sensor_msgs/msg/NavSatFix'
+VEL_TYPE = 'geometry_msgs/msg/TwistWithCovarianceStamped'
+ODOM_TYPE = 'nav_msgs/msg/Odometry'
+
+
+class BagError(ValueError):
+    """The bag cannot be replayed; the message says why in one line."""
+
+
+@dataclass
+class BagEvent:
+    """One message in stamp order: ``kind`` is 'imu', 'fix' or 'truth'; ``t`` its stamp (s)."""
+
+    kind: str
+    t: float
+    data: tuple
+
+
+def _stamp(header):
+    return header.stamp.sec + header.stamp.nanosec * 1e-9
+
+
+def _typestore():
+    from rosbags.typesys import Stores, get_typestore
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+def _match(connections, name, msgtype, required):
+    found = [c for c in connections if c.topic == name or c.topic == '/' + name
+             or c.topic.endswith('/' + name)]
+    if not found:
+        if required:
+            topics = ', '.join(sorted({c.topic for c in connections})) or 'none'
+            raise BagError(f'no topic {name!r} in the bag (topics: {topics})')
+        return []
+    for c in found:
+        if c.msgtype != msgtype:
+            raise BagError(f'topic {c.topic!r} has type {c.msgtype}, expected {msgtype}')
+    return found
+
+
+def iter_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='sim/truth'):
+    """Yield :class:`BagEvent` in recording order from a rosbag2 folder or .mcap file.
+
+    Raises :class:`BagError` for a missing IMU topic, a wrong message type or an
+    unreadable bag (also part-way through: the caller keeps what came before).
+    """
+    try:
+        from rosbags.highlevel import AnyReader
+    except ImportError:   # pragma: no cover - depends on the installation
+        raise BagError('the rosbags library is not installed (pip install rosbags)') from None
+    p = Path(path)
+    if not p.exists():
+        raise BagError(f'{path}: no such file or directory')
+    try:
+        reader = AnyReader([p], default_typestore=_typestore())
+        reader.open()
+    except Exception as exc:          # rosbags raises several types for bad input
+        raise BagError(f'{path}: not a readable rosbag2: {exc}') from None
+    try:
+        imu = _match(reader.connections, imu_topic, IMU_TYPE, True)
+        fix = _match(reader.connections, fix_topic, FIX_TYPE, False)
+        truth = _match(reader.connections, truth_topic, ODOM_TYPE, False)
+        kinds = {c.id: k for k, cs in (('imu', imu), ('fix', fix), ('truth', truth)) for c in cs}
+        try:
+            for conn, _, raw in reader.messages(connections=imu + fix + truth):
+                msg = reader.deserialize(raw, conn.msgtype)
+                kind = kinds[conn.id]
+                if kind == 'imu':
+                    w, a = msg.angular_velocity, msg.linear_acceleration
+                    yield BagEvent('imu', _stamp(msg.header), (
+                        (w.x, w.y, w.z), (a.x, a.y, a.z), msg.header.frame_id))
+                elif kind == 'fix':
+                    yield BagEvent('fix', _stamp(msg.header), (
+                        int(msg.status.status), msg.latitude, msg.longitude, msg.altitude))
+                else:
+                    q = msg.pose.pose.orientation
+                    yield BagEvent('truth', _stamp(msg.header), ((q.x, q.y, q.z, q.w),))
+        except BagError:
+            raise
+        except Exception as exc:
+            raise BagError(f'{path}: bag is truncated or corrupt: {exc}') from None
+    finally:
+        reader.close()
+
+
+def write_scenario_bag(path, sc, seed=0, duration=None, start_time=1_700_000_000.0,
+                       truth_rate_hz=10.0):
+    """Record a simulated scenario into a rosbag2 (sqlite3) like simulator_node publishes it.
+
+    Topics: imu/data_raw, gnss/fix, sim/truth (relative names, no namespace).
+    Returns the path.
+    """
+    from rosbags.rosbag2 import Writer
+
+    from ..sim.scenario import ScenarioStream
+    ts = _typestore()
+    T = ts.types
+    st = ScenarioStream(sc, seed=seed)
+    dur = duration or sc.duration
+    n_total = int(round(dur / st.dt))
+    every = max(1, int(round(1.0 / (truth_rate_hz * st.dt))))
+
+    def header(t, frame):
+        ns = int(round((start_time + t) * 1e9))
+        return T['std_msgs/msg/Header'](
+            stamp=T['builtin_interfaces/msg/Time'](sec=ns // 10 ** 9, nanosec=ns % 10 ** 9),
+            frame_id=frame)
+
+    V3, Q = T['geometry_msgs/msg/Vector3'], T['geometry_msgs/msg/Quaternion']
+    zeros9 = np.zeros(9)
+    with Writer(path, version=8) as w:
+        c_imu = w.add_connection('/imu/data_raw', IMU_TYPE, typestore=ts)
+        c_fix = w.add_connection('/gnss/fix', FIX_TYPE, typestore=ts)
+        c_truth = w.add_connection('/sim/truth', ODOM_TYPE, typestore=ts)
+        k = 0
+        while k < n_total:
+            n = min(int(round(1.0 / st.dt)), n_total - k)
+            b = st.next_block(n)
+            events = []
+            for i in range(n):
+                t = b.imu.t[i]
+                ocov = zeros9.copy()
+                ocov[0] = -1.0
+                m = T[IMU_TYPE](header=header(t, 'imu_link'),
+                                orientation=Q(x=0.0, y=0.0, z=0.0, w=1.0),
+                                orientation_covariance=ocov,
+                                angular_velocity=V3(*(b.imu.dtheta[i] / st.dt)),
+                                angular_velocity_covariance=zeros9,
+                                linear_acceleration=V3(*(b.imu.dv[i] / st.dt)),
+                                linear_acceleration_covariance=zeros9)
+                events.append((t, 0, c_imu, ts.serialize_cdr(m, IMU_TYPE)))
+                if (k + i + 1) % every == 0:
+                    q = euler_to_quat(b.imu.euler[i])
+                    off = earth.local_offset_m(*sc.trajectory.initial_position, *b.imu.pos[i])
+                    pose = T['geometry_msgs/msg/PoseWithCovariance'](
+                        pose=T['geometry_msgs/msg/Pose'](
+                            position=T['geometry_msgs/msg/Point'](*off), orientation=Q(*q)),
+                        covariance=np.zeros(36))
+                    tw = T['geometry_msgs/msg/TwistWithCovariance'](
+                        twist=T['geometry_msgs/msg/Twist'](linear=V3(0.0, 0.0, 0.0),
+                                                           angular=V3(0.0, 0.0, 0.0)),
+                        covariance=np.zeros(36))
+                    od = T[ODOM_TYPE](header=header(t, 'enu'), child_frame_id='imu_link',
+                                      pose=pose, twist=tw)
+                    events.append((t, 1, c_truth, ts.serialize_cdr(od, ODOM_TYPE)))
+            if b.gnss is not None:
+                g = b.gnss
+                for j in range(len(g.t)):
+                    st_msg = T['sensor_msgs/msg/NavSatStatus'](status=0 if g.fix[j] else -1,
+                                                               service=1)
+                    cov = np.zeros(9)
+                    cov[[0, 4, 8]] = g.pos_cov
+                    fx = T[FIX_TYPE](header=header(g.t[j], 'gnss_link'), status=st_msg,
+                                     latitude=float(np.degrees(g.lat[j])),
+                                     longitude=float(np.degrees(g.lon[j])),
+                                     altitude=float(g.h[j]), position_covariance=cov,
+                                     position_covariance_type=2)
+                    events.append((g.t[j], 2, c_fix, ts.serialize_cdr(fx, FIX_TYPE)))
+            for t, _, conn, data in sorted(events, key=lambda e: (e[0], e[1])):
+                w.write(conn, int(round((start_time + t) * 1e9)), data)
+            k += n
+    return path

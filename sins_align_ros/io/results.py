@@ -1,0 +1,49 @@
+"""The result CSV of the replay tool (DESIGN.md contract).
+
+Columns: ``t,qx,qy,qz,qw,roll_deg,pitch_deg,yaw_deg,sigma_roll_deg,sigma_pitch_deg,
+sigma_yaw_deg,phase`` followed by ``heading_deg`` (navigation heading, clockwise
+from north, for people). One row per output epoch; the last row is the final
+result. Unknown values (waiting/coarse phases) are written as ``nan``.
+"""
+import csv
+
+import numpy as np
+
+from ..nav.frames import yaw_to_heading
+
+COLUMNS = ('t', 'qx', 'qy', 'qz', 'qw', 'roll_deg', 'pitch_deg', 'yaw_deg',
+           'sigma_roll_deg', 'sigma_pitch_deg', 'sigma_yaw_deg', 'phase', 'heading_deg')
+
+
+def write_csv(path, out, every=1):
+    """Write an :class:`~sins_align_ros.align.pipeline.Output` to ``path``.
+
+    ``every`` keeps one row in ``every`` (the last row is always written).
+    """
+    n = len(out.t)
+    idx = np.arange(0, n, max(1, int(every)))
+    if n and idx[-1] != n - 1:
+        idx = np.append(idx, n - 1)
+    eul = np.degrees(out.euler[idx])
+    sig = np.degrees(out.sigma[idx])
+    head = np.degrees(yaw_to_heading(out.euler[idx, 2]))
+    with open(path, 'w', newline='') as f:
+        w = csv.writer(f)
+        w.writerow(COLUMNS)
+        for r, k in enumerate(idx):
+            q = out.q[k]
+            w.writerow([f'{out.t[k]:.9f}', *(f'{v:.12f}' for v in q),
+                        *(f'{v:.9f}' for v in eul[r]), *(f'{v:.9f}' for v in sig[r]),
+                        out.phase[k], f'{head[r]:.9f}'])
+
+
+def read_csv(path):
+    """Read a result CSV back: dict of column -> ndarray (``phase`` as str array)."""
+    with open(path, newline='') as f:
+        rows = list(csv.reader(f))
+    header, body = rows[0], rows[1:]
+    cols = {}
+    for i, name in enumerate(header):
+        vals = [r[i] for r in body]
+        cols[name] = np.array(vals) if name == 'phase' else np.array(vals, dtype=float)
+    return cols
