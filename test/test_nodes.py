@@ -186,59 +186,88 @@ def _diag_values(msg):
 def test_end_to_end_simulator_and_alignment_node_against_truth(ros_context, domain_id):
     """Issue 3 must-show 4: static navigation grade, accelerated, phases in order, truth.
 
-    The simulator runs as its own process (as with ros2 run); the alignment node and
-    the observer share this test's executor.
+    Both nodes run as their own processes, started as ``ros2 run`` does; this test only
+    observes the topics.
     """
     from sins_align_ros.align.limits import scenario_limits
     from sins_align_ros.nav.frames import ARCMIN, attitude_error, quat_to_dcm
     from sins_align_ros.sim.presets import scenario
-    node = AlignmentNode(context=ros_context, parameter_overrides=[
-        Parameter('diagnostic_period', value=0.25), Parameter('coarse_duration', value=30.0),
-        Parameter('imu_frame_id', value='imu_link')])
     obs = rclpy.create_node('observer', context=ros_context)
-    qos = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
     out, truth, diag = [], [], []
-    obs.create_subscription(Imu, 'imu/data', out.append, qos)
+    obs.create_subscription(Imu, 'imu/data', out.append,
+                            QoSProfile(depth=200, reliability=ReliabilityPolicy.RELIABLE))
+    qos = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
     obs.create_subscription(Odometry, 'sim/truth', truth.append, qos)
     obs.create_subscription(DiagnosticArray, '/diagnostics', diag.append, qos)
     ex = SingleThreadedExecutor(context=ros_context)
-    ex.add_node(node)
     ex.add_node(obs)
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id),
                ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
-    sim = subprocess.Popen([resolve_executable('simulator_node'), '--ros-args',
-                            '-p', 'scenario:=static_navigation', '-p', 'duration:=200.0',
-                            '-p', 'real_time_factor:=20.0', '-p', 'seed:=4',
-                            '-p', 'start_time:=2000.0', '-p', 'shutdown_when_done:=true'],
-                           env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    align = subprocess.Popen([resolve_executable('alignment_node'), '--ros-args',
+                              '-p', 'diagnostic_period:=0.25', '-p', 'coarse_duration:=30.0',
+                              '-p', 'imu_frame_id:=imu_link'],
+                             env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    sim = None
     try:
+        assert spin_until(ex, lambda: diag, timeout_s=30.0)     # the node is up
+        sim = subprocess.Popen([resolve_executable('simulator_node'), '--ros-args',
+                                '-p', 'scenario:=static_navigation', '-p', 'duration:=200.0',
+                                '-p', 'real_time_factor:=10.0', '-p', 'seed:=4',
+                                '-p', 'start_time:=2000.0', '-p', 'shutdown_when_done:=true'],
+                               env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                               text=True)
         assert spin_until(ex, lambda: sim.poll() is not None, timeout_s=120.0)
         spin_until(ex, lambda: out and stamp_to_ns(out[-1].header.stamp) == 2200 * 10 ** 9,
                    timeout_s=5.0)
+        spin_until(ex, lambda: False, timeout_s=0.6)             # one more diagnostics
     finally:
-        if sim.poll() is None:
-            sim.kill()
+        for p in (sim, align):
+            if p is not None and p.poll() is None:
+                p.send_signal(signal.SIGINT)
+                try:
+                    p.wait(timeout=10)
+                except subprocess.TimeoutExpired:
+                    p.kill()
     assert sim.returncode == 0, sim.stderr.read()
+    assert align.returncode == 0, align.stderr.read()
     phases = [_diag_values(m).get('phase') for m in diag]
     seen = [p for i, p in enumerate(phases) if i == 0 or p != phases[i - 1]]
-    assert seen[0] in ('waiting', 'coarse') and 'fine' in seen
-    order = {'waiting': 0, 'coarse': 1, 'fine': 2, 'aligned': 3}
-    assert [order[p] for p in seen] == sorted(order[p] for p in seen)
-    assert out[0].orientation_covariance[0] == -1.0            # unknown during coarse
+    assert seen[:3] == ['waiting', 'coarse', 'fine'], seen
+    assert seen[3:] in ([], ['aligned']), seen
     last = out[-1]
     assert stamp_to_ns(last.header.stamp) == 2200 * 10 ** 9
     tq = {stamp_to_ns(m.header.stamp): m.pose.pose.orientation for m in truth}[
         stamp_to_ns(last.header.stamp)]
     q = last.orientation
     err = attitude_error(quat_to_dcm([q.x, q.y, q.z, q.w]), quat_to_dcm([tq.x, tq.y, tq.z, tq.w]))
-    # T: fine time at least (discovery may eat the first seconds of the stream)
-    band = scenario_limits(scenario('static_navigation'), 130.0).tolerance()
+    band = scenario_limits(scenario('static_navigation'), 170.0).tolerance()
     assert np.all(np.abs(err) <= band), (err / ARCMIN, band / ARCMIN)
     cov = np.array(last.orientation_covariance).reshape(3, 3)
     assert np.all(np.abs(err) <= 3 * np.sqrt(np.diag(cov)))
     vals = _diag_values(diag[-1])
     assert vals['position_source'] == 'gnss'
     assert int(vals['imu_rejected_count']) == 0 and int(vals.get('imu_gap', 0)) == 0
+    # no sample lost once the stream reached the node (discovery may take the first seconds)
+    assert int(vals['imu_accepted']) == round(float(vals['elapsed_s']) * 100), vals
+    ex.shutdown()
+
+
+def test_alignment_node_follows_sim_time(ros_context):
+    """use_sim_time: diagnostics are stamped with the simulator's /clock."""
+    node = AlignmentNode(context=ros_context, parameter_overrides=[
+        Parameter('use_sim_time', value=True), Parameter('diagnostic_period', value=0.2)])
+    sim = SimulatorNode(context=ros_context, parameter_overrides=[
+        Parameter('duration', value=30.0), Parameter('real_time_factor', value=0.0),
+        Parameter('start_time', value=777.0)])
+    rec = Recorder(ros_context)
+    ex = SingleThreadedExecutor(context=ros_context)
+    for n in (node, sim, rec.node):
+        ex.add_node(n)
+    assert spin_until(ex, lambda: sim.done, timeout_s=60.0)
+    spin_until(ex, lambda: False, timeout_s=0.5)
+    stamped = [stamp_to_ns(m.header.stamp) for m in rec.msgs['diag']]
+    assert stamped and all(777 * 10 ** 9 <= s <= 807 * 10 ** 9 for s in stamped)
+    assert node.counts['imu'] > 2000
     ex.shutdown()
 
 

@@ -37,6 +37,8 @@ def _parser():
     ap.add_argument('--out', required=True, help='result CSV')
     ap.add_argument('--report', help='PNG figure: estimate (or error vs sim/truth) +/-3 sigma')
     ap.add_argument('--every', type=int, default=1, help='write one CSV row in N (default 1)')
+    ap.add_argument('--duration', type=float, default=None, metavar='SECONDS',
+                    help='use only the first SECONDS of IMU data')
     ap.add_argument('--imu-topic', default='imu/data_raw')
     ap.add_argument('--fix-topic', default='gnss/fix')
     ap.add_argument('--quiet', action='store_true')
@@ -56,7 +58,7 @@ def load_parameters(params_file, sets):
     return prm.validate(values)
 
 
-def replay_psins(path, values, log):
+def replay_psins(path, values, log, duration=None):
     """Run a PSINS log; returns (Output, pipeline)."""
     rec = read_psins(path)
     v = dict(values)
@@ -68,7 +70,8 @@ def replay_psins(path, values, log):
             f'{v["initial_longitude_deg"]:.6f} deg, {v["initial_height_m"]:.1f} m')
     pipe = AlignmentPipeline(v)
     pipe.start_clock(rec.t0)
-    return pipe.process(rec.t, rec.dtheta, rec.dv), pipe, None
+    n = len(rec.t) if duration is None else int(np.searchsorted(rec.t, rec.t0 + duration + 1e-9))
+    return pipe.process(rec.t[:n], rec.dtheta[:n], rec.dv[:n]), pipe, None
 
 
 def replay_bag(path, values, args, log):
@@ -90,7 +93,12 @@ def replay_bag(path, values, args, log):
             buf.clear()
 
     try:
+        t_end = None
         for ev in iter_bag(path, args.imu_topic, args.fix_topic):
+            if t_end is None and args.duration is not None:
+                t_end = ev.t + args.duration
+            if t_end is not None and ev.t > t_end + 1e-9:
+                break
             if ev.kind == 'imu':
                 w, f, _ = ev.data
                 action, dth, dv = conv.push(ev.t, w, f)
@@ -157,7 +165,7 @@ def main(argv=None):
     status, truth = 0, None
     try:
         if Path(args.input).suffix.lower() == '.imu':
-            out, pipe, truth = replay_psins(args.input, values, log)
+            out, pipe, truth = replay_psins(args.input, values, log, args.duration)
         else:
             out, pipe, truth = replay_bag(args.input, values, args, log)
     except PsinsFormatError as exc:
