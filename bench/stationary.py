@@ -180,7 +180,10 @@ def node_load(rate_hz, seconds):
     stop.set()
     th.join()
     node_proc.send_signal(2)
-    node_proc.wait(timeout=10)
+    try:
+        node_proc.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        node_proc.kill()
     ex.shutdown()
     ctx.try_shutdown()
     lat_ms = np.array(lat) * 1e-6
