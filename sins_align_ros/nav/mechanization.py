@@ -61,20 +61,7 @@ class MechanizationOptions:
 
 def _exp_so3(v):
     """Rodrigues: ``exp([v x])`` for one rotation vector (3,), as (3, 3)."""
-    a2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
-    if a2 < 1e-12:
-        # series to 4th order, exact to double precision for |v| < 1e-6
-        s = 1.0 - a2 / 6.0
-        c = 0.5 - a2 / 24.0
-    else:
-        a = np.sqrt(a2)
-        s = np.sin(a) / a
-        c = (1.0 - np.cos(a)) / a2
-    x, y, z = v
-    return np.array([
-        [1.0 - c * (y * y + z * z), c * x * y - s * z, c * x * z + s * y],
-        [c * x * y + s * z, 1.0 - c * (x * x + z * z), c * y * z - s * x],
-        [c * x * z - s * y, c * y * z + s * x, 1.0 - c * (x * x + y * y)]])
+    return np.array(_rodrigues9(float(v[0]), float(v[1]), float(v[2]))).reshape(3, 3)
 
 
 def _cross(a, b):

@@ -20,11 +20,9 @@ import os
 import sys
 
 import numpy as np
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
 from geometry_msgs.msg import Vector3Stamped
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
@@ -32,6 +30,7 @@ from std_srvs.srv import Trigger
 
 from .conversions import stamp_to_sec
 from .params import Param, declare
+from .runner import run
 from ..align import params as prm
 from ..align.imu_input import OK, RESET, START, ImuInput
 from ..align.pipeline import COARSE, WAITING, AlignmentPipeline
@@ -232,24 +231,7 @@ def make_executor():
 
 def main(args=None):
     """Entry point of ``ros2 run sins_align_ros alignment_node``."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = AlignmentNode()
-        executor = make_executor()
-        executor.add_node(node)
-        while rclpy.ok():
-            executor.spin_once(timeout_sec=0.5)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ValueError as exc:
-        print(f'alignment_node: {exc}', file=sys.stderr)
-        return 2
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run(AlignmentNode, 'alignment_node', make_executor, args=args)
 
 
 if __name__ == '__main__':

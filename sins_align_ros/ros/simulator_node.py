@@ -23,10 +23,8 @@ import sys
 import time
 from collections import deque
 
-import rclpy
 from geometry_msgs.msg import TwistWithCovarianceStamped
 from nav_msgs.msg import Odometry
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
@@ -34,6 +32,7 @@ from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
 
 from .conversions import diag_cov, ns_to_stamp, sec_to_ns, set_quaternion, set_vector3
 from .params import Param, declare
+from .runner import run
 from ..nav import earth
 from ..nav.frames import euler_rates_to_w_nb_b, euler_to_dcm, euler_to_quat
 from ..sim.imu import DPSH, UG
@@ -238,22 +237,8 @@ class SimulatorNode(Node):
 
 def main(args=None):
     """Entry point of ``ros2 run sins_align_ros simulator_node``."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = SimulatorNode()
-        while rclpy.ok() and not (node.done and node.shutdown_when_done):
-            rclpy.spin_once(node, timeout_sec=0.1)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except ValueError as exc:   # invalid parameters: one clear line, non-zero exit
-        print(f'simulator_node: {exc}', file=sys.stderr)
-        return 2
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run(SimulatorNode, 'simulator_node',
+               done=lambda node: node.done and node.shutdown_when_done, args=args)
 
 
 if __name__ == '__main__':

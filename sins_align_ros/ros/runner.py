@@ -1,0 +1,35 @@
+"""The run loop shared by the executables: spin, clean exit on Ctrl-C, one-line errors."""
+import sys
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+
+
+def run(make_node, name, make_executor=None, done=lambda node: False, args=None):
+    """Create a node with ``make_node()``, spin it until shutdown or ``done(node)``.
+
+    Invalid parameters (``ValueError`` from the node) end with one line on stderr
+    and exit code 2; SIGINT ends with exit code 0. Returns the exit code.
+    """
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = make_node()
+        if make_executor is None:
+            from rclpy.executors import SingleThreadedExecutor
+            executor = SingleThreadedExecutor()
+        else:
+            executor = make_executor()
+        executor.add_node(node)
+        while rclpy.ok() and not done(node):
+            executor.spin_once(timeout_sec=0.1)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except ValueError as exc:
+        print(f'{name}: {exc}', file=sys.stderr)
+        return 2
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
