@@ -158,7 +158,6 @@ class AlignmentPipeline:
         self.x = self.P = None
         self.stage = 0
         self.stage_t0 = None
-        self.stage_corr = np.zeros(3)
         self._since_update = 0.0
         self._sig_hist = deque()
         self.n_updates = 0
@@ -347,7 +346,6 @@ class AlignmentPipeline:
         self.t_fine = self.t_last
         self.stage = 1
         self.stage_t0 = self.t_last
-        self.stage_corr = np.zeros(3)
         self._since_update = 0.0
         self._sig_hist.clear()
         self._disc_cache = {}
@@ -379,7 +377,6 @@ class AlignmentPipeline:
         dvel[m.meas] = self.x[m.i_v]
         self.mech.v_n = self.mech.v_n - dvel
         self.mech._v_prev = self.mech._v_prev - dvel
-        self.stage_corr += phi
         self.x[m.i_phi] = 0.0
         self.x[m.i_v] = 0.0
         self._check_convergence()
@@ -428,7 +425,6 @@ class AlignmentPipeline:
         self.P[np.ix_(other, ip)] = 0.0
         self.stage += 1
         self.stage_t0 = self.t_last
-        self.stage_corr = np.zeros(3)
         self._sig_hist.clear()
 
     # -- output -------------------------------------------------------------------

@@ -83,7 +83,6 @@ def replay_bag(path, values, args, log):
     pipe = AlignmentPipeline(values)
     conv = ImuInput(values.get('max_gap', 0.5))
     outs, buf, truth = [], [], []
-    pipe.input = conv
 
     def flush():
         if buf:

@@ -1,6 +1,4 @@
 """Conversions between ROS messages and the numpy types of the lower layers."""
-import math
-
 from builtin_interfaces.msg import Time
 
 
@@ -43,8 +41,3 @@ def diag_cov(n, diag):
     for i, d in enumerate(diag):
         out[i * n + i] = float(d)
     return out
-
-
-def finite(*values):
-    """Return True if every value is a finite float."""
-    return all(math.isfinite(v) for v in values)
