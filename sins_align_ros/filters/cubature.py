@@ -1,0 +1,131 @@
+"""Cubature Kalman filter and its square-root form (seed 000 sec. 3, eq. 22-38).
+
+Generic: nothing here knows about navigation. ``fx(x) -> x'`` and ``hx(x) -> z``
+act on one state (n,); they are applied column by column to the cubature points.
+
+Shapes: ``x`` (n,), ``P`` and ``S`` (n, n) with ``P = S S^T`` (S lower
+triangular), ``Q``/``R`` and their square roots ``SQ``/``SR``, ``z`` (m,).
+"""
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import cholesky, solve_triangular
+
+
+def cubature_points(n):
+    """Return the unit cubature points ``sqrt(n) [I, -I]`` (seed 000 eq. 22), (n, 2n)."""
+    return np.sqrt(n) * np.hstack([np.eye(n), -np.eye(n)])
+
+
+def tria(A):
+    """Lower-triangular ``S`` with ``S S^T = A A^T`` by QR of ``A^T`` (seed 000 "Tria")."""
+    r = np.linalg.qr(A.T, mode='r')
+    S = r.T
+    # fix the signs so the diagonal is non-negative (unique factor)
+    d = np.sign(np.diag(S))
+    d[d == 0] = 1.0
+    return S * d[None, :]
+
+
+def chol_lower(P):
+    """Lower Cholesky factor of a symmetric positive (semi-)definite matrix."""
+    return cholesky(0.5 * (P + P.T), lower=True)
+
+
+def _propagate(fn, X):
+    return np.column_stack([fn(X[:, i]) for i in range(X.shape[1])])
+
+
+@dataclass
+class CubatureUpdate:
+    """Intermediate quantities of a measurement update, for the adaptive layers.
+
+    ``y`` innovation (m,), ``z_pred`` (m,), ``Pzz`` innovation covariance, ``Pxz``
+    cross covariance, ``K`` gain, ``eta`` (m, 2n) weighted measurement deviations
+    (eq. 32), ``chi`` (n, 2n) weighted state deviations (eq. 34).
+    """
+
+    y: np.ndarray
+    z_pred: np.ndarray
+    Pzz: np.ndarray
+    Pxz: np.ndarray
+    K: np.ndarray
+    eta: np.ndarray
+    chi: np.ndarray
+
+
+def ckf_predict(x, P, fx, Q):
+    """CKF time update (eq. 23-25 with the covariance form of eq. 26).
+
+    Returns ``(x_pred, P_pred, X_prop)`` with ``X_prop`` the propagated points (n, 2n).
+    """
+    n = len(x)
+    X = chol_lower(P) @ cubature_points(n) + x[:, None]
+    Xp = _propagate(fx, X)
+    xp = Xp.mean(axis=1)
+    D = Xp - xp[:, None]
+    Pp = D @ D.T / (2 * n) + Q
+    return xp, 0.5 * (Pp + Pp.T), Xp
+
+
+def ckf_update(x, P, z, hx, R, points=None):
+    """CKF measurement update (eq. 28-37, covariance form).
+
+    ``points`` (n, 2n): cubature points to use instead of re-sampling from ``P``
+    (eq. 28); passing the propagated points of :func:`ckf_predict` reproduces
+    filters that skip the re-sampling (e.g. filterpy's).
+    Returns ``(x, P, CubatureUpdate)``.
+    """
+    n = len(x)
+    X = chol_lower(P) @ cubature_points(n) + x[:, None] if points is None else points
+    Z = _propagate(hx, X)
+    zp = Z.mean(axis=1)
+    w = 1.0 / np.sqrt(2 * n)
+    eta = (Z - zp[:, None]) * w
+    chi = (X - X.mean(axis=1)[:, None]) * w
+    Pzz = eta @ eta.T + R
+    Pxz = chi @ eta.T
+    K = np.linalg.solve(Pzz.T, Pxz.T).T
+    y = z - zp
+    x = x + K @ y
+    P = P - K @ Pzz @ K.T
+    return x, 0.5 * (P + P.T), CubatureUpdate(y, zp, Pzz, Pxz, K, eta, chi)
+
+
+def srckf_predict(x, S, fx, SQ, fading_sqrt=None):
+    """Square-root CKF time update (eq. 23-27), with optional fading (eq. 35).
+
+    ``fading_sqrt`` (n,): the square roots of the multiple fading factors
+    (eq. 17); they scale the rows of the weighted deviations before ``Tria``.
+    Returns ``(x_pred, S_pred, chi_star)`` with ``chi_star`` (n, 2n) of eq. 27.
+    """
+    n = len(x)
+    X = S @ cubature_points(n) + x[:, None]
+    Xp = _propagate(fx, X)
+    xp = Xp.mean(axis=1)
+    chi_star = (Xp - xp[:, None]) / np.sqrt(2 * n)
+    lead = chi_star if fading_sqrt is None else fading_sqrt[:, None] * chi_star
+    return xp, tria(np.hstack([lead, SQ])), chi_star
+
+
+def srckf_update(x, S, z, hx, SR):
+    """Square-root CKF measurement update (eq. 28-38).
+
+    Returns ``(x, S, CubatureUpdate)``; ``Pzz = Szz Szz^T`` is given in full too.
+    """
+    n = len(x)
+    X = S @ cubature_points(n) + x[:, None]
+    Z = _propagate(hx, X)
+    zp = Z.mean(axis=1)
+    w = 1.0 / np.sqrt(2 * n)
+    eta = (Z - zp[:, None]) * w
+    chi = (X - x[:, None]) * w
+    Szz = tria(np.hstack([eta, SR]))
+    Pxz = chi @ eta.T
+    # eq. 36: K = (Pxz / Szz^T) / Szz, i.e. Pxz (Szz Szz^T)^-1 by two triangular solves
+    tmp = solve_triangular(Szz, Pxz.T, lower=True)
+    K = solve_triangular(Szz.T, tmp, lower=False).T
+    y = z - zp
+    x = x + K @ y
+    S = tria(np.hstack([chi - K @ eta, K @ SR]))
+    return x, S, CubatureUpdate(y, zp, Szz @ Szz.T, Pxz, K, eta, chi)

@@ -1,0 +1,160 @@
+"""Generic filter cores: CKF and SRCKF (seed 000), UKF, strong tracking, Sage-Husa.
+
+Checked against an independent implementation (filterpy 2.0, test-only dependency), the
+linear Kalman filter, and each other.
+"""
+import numpy as np
+import pytest
+
+from sins_align_ros.filters import kf
+from sins_align_ros.filters.adaptive import SageHusa, StrongTracking
+from sins_align_ros.filters.cubature import (chol_lower, ckf_predict, ckf_update,
+                                             cubature_points, srckf_predict, srckf_update, tria)
+from sins_align_ros.filters.ukf import ukf_predict, ukf_update
+
+DT = 0.1
+
+
+def fx(x):
+    """A nonlinear 4-state model: a turning, drag-affected body in 2D."""
+    px, py, v, h = x
+    return np.array([px + v * np.cos(h) * DT, py + v * np.sin(h) * DT,
+                     v - 0.05 * v * abs(v) * DT, h + 0.3 * np.sin(v) * DT])
+
+
+def hx(x):
+    """Range and bearing from the origin."""
+    return np.array([np.hypot(x[0], x[1]), np.arctan2(x[1], x[0])])
+
+
+def scenario(seed=0, steps=40):
+    rng = np.random.default_rng(seed)
+    x = np.array([10.0, 5.0, 2.0, 0.3])
+    zs = []
+    for _ in range(steps):
+        x = fx(x) + rng.normal(0, [0.01, 0.01, 0.02, 0.005])
+        zs.append(hx(x) + rng.normal(0, [0.1, 0.01]))
+    Q = np.diag([0.01, 0.01, 0.02, 0.005]) ** 2
+    R = np.diag([0.1, 0.01]) ** 2
+    return zs, Q, R
+
+
+X0 = np.array([9.5, 5.5, 1.8, 0.25])
+P0 = np.diag([1.0, 1.0, 0.25, 0.04])
+
+
+def test_tria_and_cubature_points():
+    rng = np.random.default_rng(1)
+    A = rng.normal(size=(4, 9))
+    S = tria(A)
+    assert np.allclose(S, np.tril(S)) and np.all(np.diag(S) >= 0)
+    assert S @ S.T == pytest.approx(A @ A.T)
+    xi = cubature_points(3)
+    assert xi.shape == (3, 6) and np.allclose(xi @ xi.T / 6, np.eye(3))
+
+
+def test_ckf_matches_filterpy_to_round_off():
+    filterpy = pytest.importorskip('filterpy.kalman', reason='filterpy is a test dependency')
+    zs, Q, R = scenario()
+    ref = filterpy.CubatureKalmanFilter(dim_x=4, dim_z=2, dt=DT, hx=lambda x: hx(x.ravel()),
+                                        fx=lambda x, dt: fx(x.ravel()))
+    ref.x, ref.P, ref.Q, ref.R = X0.reshape(4, 1), P0.copy(), Q, R   # column vectors
+    x, P = X0.copy(), P0.copy()
+    for z in zs:
+        ref.predict()
+        ref.update(z.reshape(2, 1))
+        x, P, Xp = ckf_predict(x, P, fx, Q)
+        x, P, _ = ckf_update(x, P, z, hx, R, points=Xp)   # filterpy does not re-sample
+        assert x == pytest.approx(ref.x.ravel(), abs=1e-10)
+        assert P == pytest.approx(ref.P, abs=1e-12)
+
+
+def test_ukf_matches_filterpy_to_round_off():
+    filterpy = pytest.importorskip('filterpy.kalman', reason='filterpy is a test dependency')
+    zs, Q, R = scenario(seed=2)
+    pts = filterpy.MerweScaledSigmaPoints(4, alpha=0.5, beta=2.0, kappa=0.0)
+    ref = filterpy.UnscentedKalmanFilter(dim_x=4, dim_z=2, dt=DT, hx=hx,
+                                         fx=lambda x, dt: fx(x), points=pts)
+    ref.x, ref.P, ref.Q, ref.R = X0.copy(), P0.copy(), Q, R
+    x, P = X0.copy(), P0.copy()
+    for z in zs:
+        ref.predict()
+        ref.update(z)
+        x, P, Xp = ukf_predict(x, P, fx, Q, alpha=0.5)
+        x, P, _, _ = ukf_update(x, P, z, hx, R, alpha=0.5)   # re-drawn points, as filterpy
+        assert x == pytest.approx(ref.x, abs=1e-10)
+        assert P == pytest.approx(ref.P, abs=1e-12)
+
+
+def test_ckf_equals_the_linear_kalman_filter_on_a_linear_problem():
+    F = np.array([[1.0, DT, 0.0], [0.0, 1.0, DT], [0.0, 0.0, 0.98]])
+    H = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    Q, R = np.diag([1e-4, 1e-3, 1e-2]), np.diag([0.05, 0.2])
+    rng = np.random.default_rng(3)
+    x_kf = x_ckf = np.array([1.0, 0.0, 0.5])
+    P_kf = P_ckf = np.eye(3)
+    for _ in range(30):
+        z = rng.normal(size=2)
+        x_kf, P_kf = kf.predict(x_kf, P_kf, F, Q)
+        x_kf, P_kf, _, _ = kf.update(x_kf, P_kf, z, H, R)
+        x_ckf, P_ckf, _ = ckf_predict(x_ckf, P_ckf, lambda x: F @ x, Q)
+        x_ckf, P_ckf, _ = ckf_update(x_ckf, P_ckf, z, lambda x: H @ x, R)
+        assert x_ckf == pytest.approx(x_kf, abs=1e-10)
+        assert P_ckf == pytest.approx(P_kf, abs=1e-10)
+
+
+def test_square_root_ckf_equals_ckf():
+    zs, Q, R = scenario(seed=4)
+    x1, P = X0.copy(), P0.copy()
+    x2, S = X0.copy(), chol_lower(P0)
+    SQ, SR = chol_lower(Q), chol_lower(R)
+    for z in zs:
+        x1, P, _ = ckf_predict(x1, P, fx, Q)
+        x1, P, u1 = ckf_update(x1, P, z, hx, R)
+        x2, S, _ = srckf_predict(x2, S, fx, SQ)
+        x2, S, u2 = srckf_update(x2, S, z, hx, SR)
+        assert x2 == pytest.approx(x1, abs=1e-9)
+        assert S @ S.T == pytest.approx(P, abs=1e-11)
+        assert u2.Pzz == pytest.approx(u1.Pzz, abs=1e-11)
+        assert np.allclose(S, np.tril(S))
+
+
+def test_fading_factors_are_one_when_consistent_and_grow_when_not():
+    rng = np.random.default_rng(5)
+    n, m = 4, 2
+    P = np.diag([1.0, 2.0, 0.5, 0.1])
+    Q = 0.01 * np.eye(n)
+    H = rng.normal(size=(m, n))
+    R = 0.1 * np.eye(m)
+    Pxz = P @ H.T
+    st = StrongTracking(alpha=np.ones(n), rho=0.95, beta=3.0)
+    S = H @ P @ H.T + R
+    for _ in range(200):                       # innovations as predicted: no fading
+        lam = st.factors(rng.multivariate_normal(np.zeros(m), S), P, Pxz, Q, R)
+    assert np.all(lam == 1.0)
+    st = StrongTracking(alpha=[1.0, 2.0, 1.0, 1.0])
+    for _ in range(200):                       # innovations ten times larger
+        lam = st.factors(10 * rng.multivariate_normal(np.zeros(m), S), P, Pxz, Q, R)
+    assert st.lambda0 > 1.0
+    assert lam[1] == pytest.approx(2.0 * lam[0]) and np.all(lam > 1.0)
+    assert StrongTracking.sqrt_factors(lam) == pytest.approx(np.sqrt(lam))
+
+
+def test_sage_husa_tracks_a_wrong_measurement_noise():
+    """Scalar random walk seen with noise 10x larger than the filter's R0."""
+    rng = np.random.default_rng(6)
+    q, r_true = 1e-4, 1.0
+    results = {}
+    for gate in (False, True):
+        est = SageHusa(Q0=np.eye(1) * q, R0=np.eye(1) * 0.01, b=0.99, gate=gate, adapt_q=False)
+        x_true, x, P = 0.0, np.zeros(1), np.eye(1)
+        for _ in range(3000):
+            x_true += rng.normal(0, np.sqrt(q))
+            z = np.array([x_true + rng.normal(0, np.sqrt(r_true))])
+            x, P, Xp = ckf_predict(x, P, lambda s: s, est.Q)
+            x, P, upd = ckf_update(x, P, z, lambda s: s, est.R)
+            est.update(upd)
+        results[gate] = est
+    assert results[False].R[0, 0] == pytest.approx(r_true, rel=0.3)   # eq. 39 alone
+    # the seed's gate (eq. 20) learns the larger noise too, but only from large innovations
+    assert results[True].R[0, 0] > 0.5 * r_true and results[True].divergence_flags > 0
