@@ -428,10 +428,25 @@ class AlignmentPipeline:
         self._sig_hist.clear()
 
     # -- output -------------------------------------------------------------------
+    @property
+    def P(self):
+        """Filter covariance (n, n); setting it refreshes the cached attitude covariance."""
+        return self._P
+
+    @P.setter
+    def P(self, value):
+        self._P = value
+        self._att_cov = None
+
     def attitude_cov(self):
-        """Misalignment covariance about ENU (3, 3), including what the model cannot see."""
-        ip = self.model.i_phi
-        return self.P[np.ix_(ip, ip)] + np.diag(self.floor)
+        """Misalignment covariance about ENU (3, 3), including what the model cannot see.
+
+        Cached between filter epochs: the per-sample output path reads it at IMU rate.
+        """
+        if self._att_cov is None:
+            ip = self.model.i_phi
+            self._att_cov = self._P[np.ix_(ip, ip)] + np.diag(self.floor)
+        return self._att_cov
 
     def _fill_last(self, out):
         """Put the coarse result into the last row of a coarse block."""
