@@ -158,3 +158,40 @@ def test_sage_husa_tracks_a_wrong_measurement_noise():
     assert results[False].R[0, 0] == pytest.approx(r_true, rel=0.3)   # eq. 39 alone
     # the seed's gate (eq. 20) learns the larger noise too, but only from large innovations
     assert results[True].R[0, 0] > 0.5 * r_true and results[True].divergence_flags > 0
+
+
+def test_asckf_without_improvements_is_the_square_root_ckf():
+    from sins_align_ros.filters.asckf import ASCKF
+    zs, Q, R = scenario(seed=7)
+    f = ASCKF(X0, P0, Q, R, fading=False, adaptive=False)
+    x, S = X0.copy(), chol_lower(P0)
+    for z in zs:
+        f.step(fx, z, hx)
+        x, S, _ = srckf_predict(x, S, fx, chol_lower(Q))
+        x, S, _ = srckf_update(x, S, z, hx, chol_lower(R))
+        assert f.x == pytest.approx(x, abs=1e-12) and f.P == pytest.approx(S @ S.T, abs=1e-12)
+
+
+def test_asckf_fades_and_adapts_when_the_noise_is_wrong():
+    """Measurement noise ten times the filter's R for a while: fading fires, R grows."""
+    from sins_align_ros.filters.asckf import ASCKF
+    rng = np.random.default_rng(8)
+    Q = np.diag([0.01, 0.01, 0.02, 0.005]) ** 2
+    R = np.diag([0.1, 0.01]) ** 2
+    x = np.array([10.0, 5.0, 2.0, 0.3])
+    f_ok = ASCKF(X0, P0, Q, R, fading=True, adaptive=False)
+    f_bad = ASCKF(X0, P0, Q, R, fading=True, adaptive=True, adapt_q=False)
+    lam_ok, lam_bad = [], []
+    for k in range(300):
+        x = fx(x) + rng.normal(0, np.sqrt(np.diag(Q)))
+        scale = 10.0 if 100 <= k < 200 else 1.0
+        noise = rng.normal(0, np.sqrt(np.diag(R)))
+        f_ok.step(fx, hx(x) + noise, hx)
+        f_bad.step(fx, hx(x) + scale * noise, hx)
+        if 150 <= k < 200:
+            lam_ok.append(f_ok.lam.max())
+            lam_bad.append(f_bad.lam.max())
+    assert np.mean(lam_ok) < 1.5
+    assert max(lam_bad) > 1.0
+    assert f_bad.noise.R[0, 0] > 3.0 * R[0, 0]               # learned the larger noise
+    assert np.all(np.isfinite(f_bad.x)) and np.all(np.linalg.eigvalsh(f_bad.P) > 0)
