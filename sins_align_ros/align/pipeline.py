@@ -141,16 +141,14 @@ class AlignmentPipeline:
         self.model = StationaryModel(cfg["fine_filter"])
         #: the last valid GNSS fix (t, lat_deg, lon_deg, h), kept across resets
         self.last_fix = None
-        self.reset('start')
+        self.reset()
 
     # -- state ------------------------------------------------------------------
-    def reset(self, reason='reset'):
+    def reset(self):
         """Forget everything but the parameters and the last GNSS fix; phase -> waiting."""
         self.phase = WAITING
-        self.reset_reason = reason
         self.t_last = None
         self.t_first = None
-        self.t_fine = None
         self._coarse = []            # (t, dtheta, dv) arrays of the coarse window
         self._coarse_T = 0.0
         self.coarse_info = {}
@@ -165,7 +163,6 @@ class AlignmentPipeline:
         self.position_source = None
         self.position = None
         self.warnings = []
-        self._last_row = None
 
     def position_fix(self, t, lat_deg, lon_deg, h):
         """Record a valid GNSS position (deg, deg, m).
@@ -282,7 +279,7 @@ class AlignmentPipeline:
         ``h`` override the position. Used by experiments that impose a known
         initial misalignment (seed 002's 1/5/10 deg cases).
         """
-        self.reset('start_fine')
+        self.reset()
         self.t_first = self.t_last = float(t0)
         self._choose_position()
         if lat is not None:
@@ -343,7 +340,6 @@ class AlignmentPipeline:
         self.R = np.eye(len(m.meas)) * self.cfg['zero_velocity_sigma'] ** 2
         self.floor = m.attitude_floor(lat, self.noise)
         self.phase = FINE
-        self.t_fine = self.t_last
         self.stage = 1
         self.stage_t0 = self.t_last
         self._since_update = 0.0

@@ -109,7 +109,7 @@ def replay_bag(path, values, args, log):
                     flush()
                     if action == RESET:
                         log(f'{conv.last_reason}')
-                        pipe.reset(conv.last_reason)
+                        pipe.reset()
                     pipe.start_clock(ev.t)
             elif ev.kind == 'fix':
                 status, lat, lon, h = ev.data
