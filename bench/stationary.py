@@ -129,6 +129,7 @@ def node_load(rate_hz, seconds):
     from sensor_msgs.msg import Imu
 
     from sins_align_ros.nav import earth
+    from sins_align_ros.ros.runner import stop_processes
     exe = os.path.join(get_package_prefix('sins_align_ros'), 'lib', 'sins_align_ros',
                        'alignment_node')
     domain = 60 + (os.getpid() + int(rate_hz)) % 60
@@ -192,11 +193,7 @@ def node_load(rate_hz, seconds):
     n_sent = sent[0] - sent0
     stop.set()
     th.join()
-    node_proc.send_signal(2)
-    try:
-        node_proc.wait(timeout=10)
-    except subprocess.TimeoutExpired:
-        node_proc.kill()
+    stop_processes([node_proc])
     ex.shutdown()
     ctx.try_shutdown()
     lat_ms = np.array(lat) * 1e-6

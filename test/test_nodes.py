@@ -25,6 +25,7 @@ from sins_align_ros.nav import earth  # noqa: E402
 from sins_align_ros.nav.frames import DEG, nav_to_euler, quat_to_euler  # noqa: E402
 from sins_align_ros.ros.alignment_node import AlignmentNode  # noqa: E402
 from sins_align_ros.ros.conversions import stamp_to_ns  # noqa: E402
+from sins_align_ros.ros.runner import stop_processes  # noqa: E402
 from sins_align_ros.ros.simulator_node import SimulatorNode  # noqa: E402
 from sins_align_ros.sim.imu import DPSH, UG  # noqa: E402
 from test_package import resolve_executable  # noqa: E402
@@ -221,13 +222,7 @@ def test_end_to_end_simulator_and_alignment_node_against_truth(ros_context, doma
                    timeout_s=5.0)
         spin_until(ex, lambda: False, timeout_s=0.6)             # one more diagnostics
     finally:
-        for p in (sim, align):
-            if p is not None and p.poll() is None:
-                p.send_signal(signal.SIGINT)
-                try:
-                    p.wait(timeout=10)
-                except subprocess.TimeoutExpired:
-                    p.kill()
+        stop_processes([sim, align])
     assert sim.returncode == 0, sim.stderr.read()
     assert align.returncode == 0, align.stderr.read()
     phases = [_diag_values(m).get('phase') for m in diag]

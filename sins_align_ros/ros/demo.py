@@ -8,7 +8,6 @@ error against the simulator's truth.
 """
 import argparse
 import os
-import signal
 import subprocess
 import sys
 import time
@@ -21,6 +20,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
 
 from .conversions import stamp_to_ns
+from .runner import stop_processes
 from ..nav.frames import ARCMIN, attitude_error, quat_to_dcm, quat_to_euler, yaw_to_heading
 from ..align.limits import scenario_limits
 from ..align.params import AVAILABLE_FINE_FILTERS
@@ -163,14 +163,7 @@ def main(argv=None):
     except KeyboardInterrupt:
         return 130
     finally:
-        for p in procs:
-            if p.poll() is None:
-                p.send_signal(signal.SIGINT)
-        for p in procs:
-            try:
-                p.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                p.kill()
+        stop_processes(procs)
         ex.shutdown()
         ctx.try_shutdown()
 

@@ -1,4 +1,10 @@
-"""The run loop shared by the executables: spin, clean exit on Ctrl-C, one-line errors."""
+"""Run loop of the executables, and the matching way to stop them as child processes.
+
+``run``: spin, clean exit on Ctrl-C, one-line errors. ``stop_processes``: what the
+demo, the tests and the benchmarks use to end the nodes they started.
+"""
+import signal
+import subprocess
 import sys
 
 import rclpy
@@ -33,3 +39,21 @@ def run(make_node, name, make_executor=None, done=lambda node: False, args=None)
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def stop_processes(procs, timeout=10.0):
+    """Stop child processes as Ctrl-C would (SIGINT), killing any still alive after ``timeout``.
+
+    ``None`` entries and processes that already ended are skipped; the SIGINTs go out
+    together so the processes shut down in parallel.
+    """
+    procs = [p for p in procs if p is not None]
+    for p in procs:
+        if p.poll() is None:
+            p.send_signal(signal.SIGINT)
+    for p in procs:
+        try:
+            p.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()
