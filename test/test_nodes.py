@@ -154,10 +154,39 @@ def test_invalid_parameters_are_refused_with_a_reason(ros_context):
     assert not res.successful and 'fine_filter' in res.reason
     res = node.set_parameters([Parameter('initial_latitude_deg', value=95.0)])[0]
     assert not res.successful
-    res = node.set_parameters([Parameter('fine_filter', value='asckf')])[0]
+    res = node.set_parameters([Parameter('fine_filter', value='vbch')])[0]
     assert not res.successful and 'not available' in res.reason
     res = node.set_parameters([Parameter('fine_filter', value='stationary12')])[0]
     assert res.successful and node.pipeline.model.name == 'stationary12'
+    res = node.set_parameters([Parameter('fine_filter', value='asckf')])[0]
+    assert res.successful and node.pipeline.moving
+
+
+def test_moving_base_diagnostics_carry_the_asckf_internals(ros_context):
+    """fine_filter asckf: /diagnostics has fading factors, Q/R diagonals, NIS, test count."""
+    from sins_align_ros.align.pipeline import feed_arrays
+    from sins_align_ros.sim.presets import scenario
+    from sins_align_ros.sim.scenario import ScenarioStream
+    node = AlignmentNode(context=ros_context, parameter_overrides=[
+        Parameter('fine_filter', value='asckf'), Parameter('diagnostic_period', value=0.1),
+        Parameter('gnss_pos_sigma_m', value=0.2)])
+    b = ScenarioStream(scenario('seed000_case1', duration=80.0), seed=3).next_block(8000)
+    node.pipeline.start_clock(0.0)
+    feed_arrays(node.pipeline, b.imu, b.gnss)
+    got = []
+    probe = rclpy.create_node('diag_probe', context=ros_context)
+    probe.create_subscription(DiagnosticArray, '/diagnostics', got.append, 10)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(node)
+    ex.add_node(probe)
+    assert spin_until(ex, lambda: got, timeout_s=10.0)
+    kv = {v.key: v.value for v in got[-1].status[0].values}
+    assert kv['phase'] == 'fine' and kv['fine_filter'] == 'asckf'
+    assert len(kv['fading_factors'].split()) == 10
+    assert len(kv['R_diag'].split()) == 4 and len(kv['Q_diag'].split()) == 10
+    assert int(kv['divergence_test_fired']) >= 0 and float(kv['innovation_nis']) >= 0.0
+    assert int(kv['gnss_used']) >= 15
+    ex.shutdown()
 
 
 def test_alignment_node_reports_waiting_then_counts_imu(ros_context):

@@ -10,7 +10,9 @@ import yaml
 FINE_FILTERS = ('reduced7', 'stationary10', 'stationary12', 'ckf', 'asckf', 'ukf',
                 'vbakf', 'mvbakf', 'vbckf', 'vbch')
 #: fine filters implemented in this version
-AVAILABLE_FINE_FILTERS = ('reduced7', 'stationary10', 'stationary12')
+AVAILABLE_FINE_FILTERS = ('reduced7', 'stationary10', 'stationary12', 'ckf', 'asckf')
+#: fine filters for a moving base with GNSS aiding (seed 000)
+MOVING_FILTERS = ('ckf', 'asckf')
 COARSE_METHODS = ('auto', 'analytic', 'inertial_frame')
 
 
@@ -67,6 +69,25 @@ ALIGNMENT_PARAMS = (
           '(seed 002 sec. 4; 1 = none)', 1, 10),
     Param('stage_min_duration', 30.0, 'minimum time of one fine-alignment stage, s',
           5.0, 3600.0),
+    Param('gnss_pos_sigma_m', 1.0, 'GNSS horizontal position noise, 1 sigma, m (moving-base '
+          'filters; used when a fix reports no covariance or reported covariance is off)',
+          0.001, 1000.0),
+    Param('gnss_vel_sigma_mps', 0.1, 'GNSS velocity noise, 1 sigma, m/s (gnss/vel)',
+          0.001, 100.0),
+    Param('use_gnss_velocity', True, 'measure gnss/vel in the moving-base filters as well '
+          'as the position (when gnss/vel messages arrive)'),
+    Param('use_reported_gnss_covariance', True, 'take the GNSS noise from each message\'s '
+          'covariance when it is known (ckf and asckf without adaptation)'),
+    Param('asckf_fading', True, 'asckf: multiple fading factors (seed 000 eq. 7-17)'),
+    Param('asckf_adaptive', True, 'asckf: Sage-Husa measurement-noise estimation with the '
+          'divergence test (seed 000 eq. 39, 20)'),
+    Param('asckf_adapt_q', False, 'asckf: estimate the process noise Q as well (seed 000 '
+          'eq. 39; off by default, see README)'),
+    Param('asckf_forgetting', 0.97, 'asckf: Sage-Husa forgetting factor b', 0.5, 0.9999),
+    Param('track_min_speed_mps', 2.0, 'coarse alignment on a moving base takes the heading '
+          'from the GNSS track above this horizontal speed, m/s', 0.1, 1000.0),
+    Param('track_heading_sigma_deg', 10.0, '1-sigma of the track heading (crab angle, '
+          'sideslip, mounting), deg', 0.1, 180.0),
     Param('max_gap', 0.5, 'largest IMU stamp gap bridged by interpolation-free '
           'integration, s; longer gaps restart the mechanization history', 0.001, 10.0),
 )

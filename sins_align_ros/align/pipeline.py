@@ -15,18 +15,28 @@ prior): seed 002's closing suggestion of staged re-initialisation, which
 removes the error that the first transient leaves in the bias estimates.
 After ``max_stages`` stages
 the phase becomes ``aligned`` (the filter keeps refining).
+
+Moving base (``fine_filter`` ckf or asckf, seed 000): coarse alignment is the
+inertial-frame method with the GNSS velocity change removed, and the heading
+is taken from the GNSS track when the vehicle moves faster than
+``track_min_speed_mps``; fine alignment is :mod:`.moving` (full mechanization,
+large-azimuth model, CKF/ASCKF at every GNSS epoch). GNSS epochs are queued
+and applied at the first IMU sample at or after their stamp (the measurement
+is moved back to the fix time with the current velocity).
 """
+import math
 from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 
 from . import params as prm
+from .moving import FilterDiverged, GnssFix, MovingBaseAlignment
 from ..filters import kf
 from ..models.stationary import NoiseSpec, StationaryModel
 from ..nav import coarse, earth
 from ..nav.frames import (DEG, dcm_to_euler, dcm_to_quat, euler_cov_from_phi_cov,
-                          euler_sigma_one, rotvec_to_dcm)
+                          euler_sigma_one, euler_to_dcm, rotvec_to_dcm)
 from ..nav.mechanization import StationaryStrapdown
 
 WAITING, COARSE, FINE, ALIGNED = 'waiting', 'coarse', 'fine', 'aligned'
@@ -34,6 +44,10 @@ PHASES = (WAITING, COARSE, FINE, ALIGNED)
 _DPH = DEG / 3600.0
 _DPSH = DEG / 60.0
 _UG = 1e-6 * earth.G0
+#: GNSS history kept for the moving-base coarse alignment, s
+_GNSS_KEEP = 3600.0
+#: a queued GNSS epoch older than this (against the IMU stamps) is dropped, s
+_GNSS_MAX_LAG = 1.0
 
 
 @dataclass
@@ -138,7 +152,8 @@ class AlignmentPipeline:
                                gyro_arw=cfg['gyro_arw_dpsh'] * _DPSH,
                                accel_bias=cfg['accel_bias_ug'] * _UG,
                                accel_vrw=cfg['accel_vrw_ug_rthz'] * _UG)
-        self.model = StationaryModel(cfg["fine_filter"])
+        self.moving = cfg['fine_filter'] in prm.MOVING_FILTERS
+        self.model = None if self.moving else StationaryModel(cfg['fine_filter'])
         #: the last valid GNSS fix (t, lat_deg, lon_deg, h), kept across resets
         self.last_fix = None
         self.reset()
@@ -163,14 +178,40 @@ class AlignmentPipeline:
         self.position_source = None
         self.position = None
         self.warnings = []
+        self.engine = None
+        self._fixes = deque()        # (t, lat, lon, h, pos_var) in rad, rad, m, m^2
+        self._vels = deque()         # (t, v_n (3,), vel_var)
+        self._pending = deque()      # GnssFix waiting for the IMU to pass their stamp
+        self.gnss_counts = {'used': 0, 'late': 0, 'before_start': 0}
 
-    def position_fix(self, t, lat_deg, lon_deg, h):
-        """Record a valid GNSS position (deg, deg, m).
+    def position_fix(self, t, lat_deg, lon_deg, h, pos_var=None):
+        """Record a valid GNSS position (deg, deg, m); ``pos_var`` (2,) east/north m^2 or None.
 
-        The position is fixed when coarse alignment ends (the stationary models
-        keep it constant, seed 002 Table 1); the latest fix before that is used.
+        Stationary models: the position is fixed when coarse alignment ends (seed
+        002 Table 1), from the latest fix. Moving-base models: every fix is also a
+        measurement, applied when the IMU stream passes its stamp.
         """
-        self.last_fix = (float(t), float(lat_deg), float(lon_deg), float(h))
+        t = float(t)
+        self.last_fix = (t, float(lat_deg), float(lon_deg), float(h))
+        if not self.moving:
+            return
+        pv = None if pos_var is None else np.asarray(pos_var, dtype=float)[:2]
+        rec = (t, lat_deg * DEG, lon_deg * DEG, float(h), pv)
+        self._fixes.append(rec)
+        while self._fixes and self._fixes[0][0] < t - _GNSS_KEEP:
+            self._fixes.popleft()
+        if self.engine is not None:
+            self._pending.append(rec)
+
+    def velocity_fix(self, t, v_n, vel_var=None):
+        """Record a GNSS ENU velocity (m/s, (3,)); ``vel_var`` (2,) east/north (m/s)^2 or None."""
+        if not self.moving:
+            return
+        t = float(t)
+        vv = None if vel_var is None else np.asarray(vel_var, dtype=float)[:2]
+        self._vels.append((t, np.asarray(v_n, dtype=float).copy(), vv))
+        while self._vels and self._vels[0][0] < t - _GNSS_KEEP:
+            self._vels.popleft()
 
     def _choose_position(self):
         if self.cfg['use_gnss_position'] and self.last_fix is not None:
@@ -223,6 +264,11 @@ class AlignmentPipeline:
                 outs.append(out)
                 i = j
                 continue
+            if self.engine is not None:
+                out, used = self._process_moving(t[i:], dtheta[i:], dv[i:])
+                outs.append(out)
+                i += used
+                continue
             # fine / aligned: mechanize up to the next filter epoch
             period = 1.0 / self.cfg['fine_update_hz']
             if n == 1:
@@ -249,13 +295,23 @@ class AlignmentPipeline:
     def _one(self, t, dtheta, dv, period):
         """Single-sample fine step with scalar arithmetic (the live node's path)."""
         dt = t - self.t_last
-        C = self.mech.step(dtheta, dv, dt)
-        self.t_last = t
-        self._since_update += dt
-        if self._since_update >= period - 1e-9:
-            self._filter_step(self._since_update)
-            self._since_update = 0.0
-            C = self.mech.C_b_n
+        if self.engine is not None:
+            C = self.engine.step_imu(dtheta, dv, dt)
+            self.t_last = t
+            if self._pending and self._pending[0][0] <= t + 1e-9:
+                eng = self.engine
+                self._apply_pending(t)
+                if self.engine is not eng:
+                    return _unknown([t], self.phase)
+                C = self.mech.C_b_n
+        else:
+            C = self.mech.step(dtheta, dv, dt)
+            self.t_last = t
+            self._since_update += dt
+            if self._since_update >= period - 1e-9:
+                self._filter_step(self._since_update)
+                self._since_update = 0.0
+                C = self.mech.C_b_n
         P = self.attitude_cov()
         eul = dcm_to_euler(C)
         return Output(np.array([t]), dcm_to_quat(C)[None], eul[None],
@@ -279,6 +335,9 @@ class AlignmentPipeline:
         ``h`` override the position. Used by experiments that impose a known
         initial misalignment (seed 002's 1/5/10 deg cases).
         """
+        if self.moving:
+            raise ValueError('start_fine is for the stationary models; the moving-base '
+                             'filters start from coarse alignment with GNSS')
         self.reset()
         self.t_first = self.t_last = float(t0)
         self._choose_position()
@@ -299,7 +358,9 @@ class AlignmentPipeline:
                                                         self.noise.accel_vrw)
         if method == 'auto':
             method = 'inertial_frame' if moving else 'analytic'
-        if method == 'analytic':
+        if self.moving:
+            C = None
+        elif method == 'analytic':
             C = coarse.analytic(dth, dvv, dts, lat)
         else:
             C = coarse.inertial_frame(dth, dvv, dts, lat, h)
@@ -307,9 +368,167 @@ class AlignmentPipeline:
         self.coarse_info = {'method': method, 'motion_detected': moving,
                             'rate_scatter_dph': rate_sc / _DPH, 'tilt_scatter_urad': tilt_sc * 1e6,
                             'duration_s': T}
+        if self.moving:
+            self.coarse_info['method'] = 'inertial_frame'
+            self._finish_coarse_moving(tt, dth, dvv, dts, moving, T)
+            return
         self._init_fine(C, self._coarse_sigma(T, lat, moving))
 
-    def _coarse_sigma(self, T, lat, moving):
+    # -- moving base ----------------------------------------------------------------
+    def _process_moving(self, t, dtheta, dv):
+        """Mechanize samples, applying queued GNSS epochs as the stamps pass them.
+
+        Returns ``(Output, number of samples consumed)``: fewer than given when the
+        filter diverged and the pipeline went back to coarse alignment.
+        """
+        eng = self.engine
+        n = len(t)
+        Cs = np.empty((n, 3, 3))
+        parts, start = [], 0
+        for k in range(n):
+            tk = t[k]
+            Cs[k] = eng.step_imu(dtheta[k], dv[k], tk - self.t_last)
+            self.t_last = tk
+            if self._pending and self._pending[0][0] <= tk + 1e-9:
+                if k > start:
+                    parts.append(_Rows(t[start:k], Cs[start:k], self.attitude_cov(), self.phase))
+                    start = k
+                self._apply_pending(tk)
+                Cs[k] = eng.mech.C_b_n
+                if self.engine is not eng:             # diverged: restarted from coarse
+                    parts.append(_Rows(t[start:k + 1], Cs[start:k + 1],
+                                       eng.attitude_cov(), FINE))
+                    return _assemble(parts), k + 1
+        parts.append(_Rows(t[start:], Cs[start:], self.attitude_cov(), self.phase))
+        return _assemble(parts), n
+
+    def _apply_pending(self, t_now):
+        while self._pending and self._pending[0][0] <= t_now + 1e-9:
+            t_f, lat, lon, h, pv = self._pending.popleft()
+            if t_f <= self.stage_t0:
+                self.gnss_counts['before_start'] += 1
+                continue
+            if t_now - t_f > _GNSS_MAX_LAG:
+                self.gnss_counts['late'] += 1
+                continue
+            v, vv = self._velocity_at_stamp(t_f)
+            try:
+                self.engine.update(GnssFix(t_f, lat, lon, h, v, pv, vv), t_now)
+            except FilterDiverged as exc:
+                self._diverged(str(exc))
+                return
+            self.gnss_counts['used'] += 1
+            self.n_updates += 1
+            self.last_nis = self.engine.last_nis
+            self._att_cov = None
+            self._check_convergence()
+
+    def _diverged(self, reason):
+        """Restart from coarse alignment after a filter failure, keeping GNSS history."""
+        fixes, vels, last = self._fixes, self._vels, self.last_fix
+        t = self.t_last
+        self.reset()
+        self.last_fix, self._fixes, self._vels = last, fixes, vels
+        self.t_last = t
+        self.n_restarts = getattr(self, 'n_restarts', 0) + 1
+        self.warnings.append(f'{reason}: alignment restarted from coarse')
+
+    def _velocity_at_stamp(self, t_f):
+        """GNSS velocity with the fix's stamp (within 20 ms), or (None, None)."""
+        for t_v, v, vv in reversed(self._vels):
+            if abs(t_v - t_f) <= 0.02:
+                return v, vv
+            if t_v < t_f - 0.02:
+                break
+        return None, None
+
+    def _gnss_velocity(self, tt):
+        """GNSS velocity at stamps ``tt`` (N, 3), its 1-sigma (m/s), source; or (None, ...).
+
+        From gnss/vel when at least two messages cover the window, else from the
+        fixes by a least-squares slope over +-3 epochs.
+        """
+        lo, hi = tt[0] - 2.0, tt[-1] + 2.0
+        vels = [(tv, v) for tv, v, _ in self._vels if lo <= tv <= hi]
+        if len(vels) >= 2 and vels[0][0] <= tt[0] + 2.0 and vels[-1][0] >= tt[-1] - 2.0:
+            tv = np.array([a for a, _ in vels])
+            V = np.array([b for _, b in vels])
+            out = np.column_stack([np.interp(tt, tv, V[:, i]) for i in range(3)])
+            return out, self.cfg['gnss_vel_sigma_mps'], 'gnss_velocity'
+        fixes = [f for f in self._fixes if lo <= f[0] <= hi]
+        if len(fixes) < 7 or fixes[0][0] > tt[0] + 2.0 or fixes[-1][0] < tt[-1] - 2.0:
+            return None, None, 'none'
+        tf = np.array([f[0] for f in fixes])
+        lat0, lon0, h0 = fixes[0][1:4]
+        enu = earth.local_offset_m(lat0, lon0, h0, np.array([f[1] for f in fixes]),
+                                   np.array([f[2] for f in fixes]),
+                                   np.array([f[3] for f in fixes]))
+        w = 3
+        vt, vv = [], []
+        for i in range(w, len(tf) - w):
+            sl = slice(i - w, i + w + 1)
+            tc = tf[sl] - tf[i]
+            vv.append((tc @ (enu[sl] - enu[sl].mean(axis=0))) / (tc @ tc))
+            vt.append(tf[i])
+        vt, vv = np.array(vt), np.array(vv)
+        out = np.column_stack([np.interp(tt, vt, vv[:, i]) for i in range(3)])
+        dt_fix = float(np.median(np.diff(tf)))
+        sig = self.cfg['gnss_pos_sigma_m'] * math.sqrt(12.0 / (2 * w + 1) / (
+            (2 * w + 1) ** 2 - 1)) / dt_fix
+        return out, sig, 'gnss_positions'
+
+    def _finish_coarse_moving(self, tt, dth, dvv, dts, moving, T):
+        """Coarse alignment on a moving base and the start of the seed 000 filter."""
+        cfg, nz = self.cfg, self.noise
+        lat, lon, h = self.position
+        V, v_sig, v_src = self._gnss_velocity(tt)
+        dv_n = None if V is None else V - V[0]
+        C = coarse.inertial_frame(dth, dvv, dts, lat, h, dv_n=dv_n)
+        sigma = self._coarse_sigma(T, lat, moving, cap=90.0 * DEG)
+        if V is None and moving:
+            sigma[:2] *= 3.0
+            self.warnings.append('the base moves and no GNSS velocity covers the coarse window: '
+                                 'tilt from specific force alone')
+        v_end = np.zeros(3) if V is None else V[-1]
+        speed = float(np.hypot(v_end[0], v_end[1]))
+        head_src = 'inertial_frame'
+        if V is not None and speed >= cfg['track_min_speed_mps']:
+            eul = dcm_to_euler(C)
+            eul[2] = math.atan2(v_end[1], v_end[0])
+            C = euler_to_dcm(eul)
+            sigma[2] = cfg['track_heading_sigma_deg'] * DEG
+            head_src = 'gnss_track'
+        if self.last_fix is not None and cfg['use_gnss_position']:
+            t_f = self.last_fix[0]
+            R_M, R_N = earth.radii(lat)
+            lat += v_end[1] * (self.t_last - t_f) / (R_M + h)
+            lon += v_end[0] * (self.t_last - t_f) / ((R_N + h) * math.cos(lat))
+        s_v = 0.5 if v_sig is None else max(2.0 * v_sig, 0.02)
+        s_p = cfg['gnss_pos_sigma_m']
+        P0 = np.diag(np.r_[[s_v ** 2] * 2, [s_p ** 2] * 2, sigma ** 2,
+                           [max(nz.gyro_bias, 1e-3 * _DPH) ** 2] * 3])
+        Qc = np.r_[[nz.accel_vrw ** 2] * 2, 0.0, 0.0, [nz.gyro_arw ** 2] * 3, 0.0, 0.0, 0.0]
+        use_vel = bool(cfg['use_gnss_velocity'] and self._vels)
+        R = [s_p ** 2] * 2 + ([cfg['gnss_vel_sigma_mps'] ** 2] * 2 if use_vel else [])
+        asckf = cfg['fine_filter'] == 'asckf'
+        self.engine = MovingBaseAlignment(
+            C, v_end, lat, lon, h, P0, Qc, np.diag(R), use_velocity=use_vel,
+            square_root=asckf, fading=asckf and cfg['asckf_fading'],
+            adaptive=asckf and cfg['asckf_adaptive'], adapt_q=cfg['asckf_adapt_q'],
+            b=cfg['asckf_forgetting'], use_reported_cov=cfg['use_reported_gnss_covariance'])
+        self.mech = self.engine.mech
+        self.coarse_info.update({'velocity_source': v_src, 'heading_source': head_src,
+                                 'speed_mps': speed})
+        self.phase = FINE
+        self.stage = 1
+        self.stage_t0 = self.t_last
+        self.floor = np.zeros(3)
+        self._sig_hist.clear()
+        self.P = self.engine.P
+        # fixes that came in during coarse alignment are history, not measurements
+        self._pending.clear()
+
+    def _coarse_sigma(self, T, lat, moving, cap=30.0 * DEG):
         """Conservative 1-sigma misalignment (rad) after coarse alignment over T seconds."""
         nz = self.noise
         g = earth.gravity(lat, 0.0)
@@ -320,7 +539,7 @@ class AlignmentPipeline:
         if moving:
             tilt, head = 2.0 * tilt, 2.0 * head
         tilt = max(tilt, 0.05 * DEG)
-        head = min(max(head, 0.5 * DEG), 30.0 * DEG)
+        head = min(max(head, 0.5 * DEG), cap)
         if nz.gyro_bias > 0.5 * wc:
             self.warnings.append(
                 f'gyro bias {nz.gyro_bias / _DPH:.3g} deg/h is not small against the '
@@ -378,8 +597,11 @@ class AlignmentPipeline:
         self._check_convergence()
 
     def _check_convergence(self):
-        i_u = self.model.i_phi[2]
-        sig_u = np.sqrt(self.P[i_u, i_u] + self.floor[2])
+        if self.engine is not None:
+            sig_u = math.sqrt(max(self.engine.attitude_cov()[2, 2], 0.0))
+        else:
+            i_u = self.model.i_phi[2]
+            sig_u = np.sqrt(self.P[i_u, i_u] + self.floor[2])
         t = self.t_last
         self._sig_hist.append((t, sig_u))
         while self._sig_hist and self._sig_hist[0][0] < t - 10.0:
@@ -389,7 +611,7 @@ class AlignmentPipeline:
         t_old, s_old = self._sig_hist[0]
         if t - t_old < 9.0 or sig_u < 0.98 * s_old:
             return
-        if self.stage < self.cfg['max_stages']:
+        if self.stage < self.cfg['max_stages'] and self.engine is None:
             self._restage()
         elif self.phase == FINE:
             self.phase = ALIGNED
@@ -440,8 +662,11 @@ class AlignmentPipeline:
         Cached between filter epochs: the per-sample output path reads it at IMU rate.
         """
         if self._att_cov is None:
-            ip = self.model.i_phi
-            self._att_cov = self._P[np.ix_(ip, ip)] + np.diag(self.floor)
+            if self.engine is not None:
+                self._att_cov = self.engine.attitude_cov()
+            else:
+                ip = self.model.i_phi
+                self._att_cov = self._P[np.ix_(ip, ip)] + np.diag(self.floor)
         return self._att_cov
 
     def _fill_last(self, out):
@@ -452,7 +677,8 @@ class AlignmentPipeline:
 
     def status(self):
         """Key figures for diagnostics (plain Python types)."""
-        s = {'phase': self.phase, 'elapsed_s': self.elapsed, 'fine_filter': self.model.name,
+        s = {'phase': self.phase, 'elapsed_s': self.elapsed,
+             'fine_filter': self.cfg['fine_filter'],
              'position_source': self.position_source or 'none', 'stage': self.stage,
              'filter_updates': self.n_updates}
         if self.position is not None:
@@ -462,5 +688,34 @@ class AlignmentPipeline:
             for k, name in enumerate(('roll', 'pitch', 'yaw')):
                 s[f'sigma_{name}_deg'] = float(np.sqrt(max(P_e[k, k], 0.0)) / DEG)
             s['innovation_nis'] = self.last_nis
+        if self.engine is not None:
+            s.update(self.engine.status())
+            s['filter_updates'] = self.n_updates
+            s.update({f'gnss_{k}': v for k, v in self.gnss_counts.items()})
         s.update({f'coarse_{k}': v for k, v in self.coarse_info.items()})
         return s
+
+
+def feed_arrays(p, imu, gnss, use_velocity=True, block=100):
+    """Feed whole recorded or simulated arrays to pipeline ``p`` in time order.
+
+    ``imu`` has ``t``, ``dtheta``, ``dv`` (N, ...); ``gnss`` has ``t``, ``lat``,
+    ``lon`` (rad), ``h``, ``v_n`` (M, 3), ``fix`` (M,) bool and ``pos_cov``/``vel_cov``
+    (ENU variances), or is None. GNSS epochs are given before the IMU block that
+    passes their stamps, as a live node would receive them. Returns the :class:`Output`.
+    """
+    outs, gi = [], 0
+    n = len(imu.t)
+    m = 0 if gnss is None else len(gnss.t)
+    for i in range(0, n, block):
+        j = min(n, i + block)
+        while gi < m and gnss.t[gi] <= imu.t[j - 1] + 1e-9:
+            if gnss.fix[gi]:
+                p.position_fix(gnss.t[gi], gnss.lat[gi] / DEG, gnss.lon[gi] / DEG, gnss.h[gi],
+                               pos_var=np.asarray(gnss.pos_cov)[:2])
+                if use_velocity:
+                    p.velocity_fix(gnss.t[gi], gnss.v_n[gi],
+                                   vel_var=np.asarray(gnss.vel_cov)[:2])
+            gi += 1
+        outs.append(p.process(imu.t[i:j], imu.dtheta[i:j], imu.dv[i:j]))
+    return Output.concat(outs)

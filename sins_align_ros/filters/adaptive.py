@@ -19,10 +19,14 @@ class StrongTracking:
         Forgetting factor of the innovation covariance ``V_k`` (eq. 10), 0 < rho <= 1.
     beta : float
         Weakening factor (eq. 9), usually 3.
+    lambda_max : float
+        Upper bound of each factor (not in the seed; see ``align/moving.py``).
+        ``alpha_i = 0`` keeps state i free of fading (its factor is 1).
     """
 
-    def __init__(self, alpha, rho=0.95, beta=3.0):
+    def __init__(self, alpha, rho=0.95, beta=3.0, lambda_max=np.inf):
         self.alpha = np.asarray(alpha, dtype=float)
+        self.lambda_max = float(lambda_max)
         self.rho = float(rho)
         self.beta = float(beta)
         self.V = None
@@ -36,12 +40,16 @@ class StrongTracking:
         """
         yy = np.outer(y, y)
         self.V = yy if self.V is None else (self.rho * self.V + yy) / (1.0 + self.rho)  # eq. 10
-        H = np.linalg.solve(P_pred.T, Pxz).T                                # eq. 13
+        # eq. 13, H = Pxz^T P^-1, solved on the correlation matrix: P mixes
+        # variances of metres and of micro-radians per second, so P itself is
+        # too ill-conditioned (1e16 here) to be inverted as it stands
+        d = np.sqrt(np.clip(np.diag(P_pred), 1e-300, None))
+        Pn = P_pred / np.outer(d, d)
+        H = np.linalg.solve(Pn, Pxz / d[:, None]).T / d[None, :]           # eq. 13
         N = self.V - self.beta * R - H @ Q @ H.T                             # eq. 14
-        M = (P_pred - Q) @ H.T @ H                                           # eq. 16
-        trM = np.trace(M)
+        trM = np.trace(H @ (P_pred - Q) @ H.T)                               # tr of eq. 16
         self.lambda0 = np.trace(N) / trM if trM > 0 else 1.0                 # eq. 8
-        lam = self.alpha * self.lambda0
+        lam = np.minimum(self.alpha * self.lambda0, self.lambda_max)
         return np.where(self.lambda0 > 1.0, np.maximum(lam, 1.0), 1.0)
 
     @staticmethod
@@ -63,29 +71,42 @@ class SageHusa:
         Apply the divergence test of eq. 20 (the seed's algorithm). As written it
         updates R only from innovations larger than predicted, which biases R
         upwards; ``gate=False`` is the plain estimator of eq. 39.
+    r_ceiling : float
+        Largest eigenvalue of R, as a multiple of the initial mean variance.
+    r_when_identifiable : bool
+        Estimate R only from epochs whose innovation covariance is dominated by R
+        (``tr(Pzz) <= 2 tr(R)``), not in a transient of the state (not in the seed).
     adapt_q : bool
         Estimate Q as well (eq. 39). Q and R are not separately identifiable from
         the innovations of a weakly observable state; adapting both lets Q absorb
         measurement noise.
     """
 
-    def __init__(self, Q0, R0, b=0.97, gate=True, adapt_q=True):
+    def __init__(self, Q0, R0, b=0.97, gate=True, adapt_q=True, r_ceiling=np.inf,
+                 r_when_identifiable=False):
         self.gate = bool(gate)
+        self.r_when_identifiable = bool(r_when_identifiable)
         self.adapt_q = bool(adapt_q)
         self.Q = np.array(Q0, dtype=float)
         self.R = np.array(R0, dtype=float)
         #: eigenvalue floor that keeps R positive definite (1e-3 of the initial mean variance)
         self.r_floor = 1e-3 * float(np.trace(self.R)) / len(self.R)
+        #: eigenvalue ceiling of R as a multiple of the initial mean variance (not in the
+        #: seed): a large model error (heading error in an acceleration) otherwise feeds
+        #: a runaway, R up -> measurements ignored -> larger innovations -> R up
+        self.r_ceiling = float(r_ceiling) * float(np.trace(self.R)) / len(self.R)
         self.b = float(b)
         self.k = 0
         self.divergence_flags = 0
 
-    def update(self, upd):
+    def update(self, upd, idx=None):
         """Update Q and R from a :class:`~sins_align_ros.filters.cubature.CubatureUpdate`.
 
         Eq. 20: if ``y^T y <= tr(E[y y^T])`` (the innovation is consistent with its
         predicted covariance) only Q is updated (eq. 21); otherwise both (eq. 39),
-        following step 17 of the seed's algorithm. Returns ``(Q, R)``.
+        following step 17 of the seed's algorithm. ``idx`` (m,): the rows of the
+        full measurement vector this update used (default all); only that block
+        of R is estimated. Returns ``(Q, R)``.
         """
         self.k += 1
         d = (1.0 - self.b) / (1.0 - self.b ** self.k)
@@ -98,8 +119,15 @@ class SageHusa:
                 return self.Q, self.R                                        # eq. 21
         else:
             self.divergence_flags += 1
-        R_new = (1.0 - d) * self.R + d * (np.outer(y, y) - eta @ eta.T)     # eq. 39
+        idx = np.arange(len(self.R)) if idx is None else np.asarray(idx)
+        blk = np.ix_(idx, idx)
+        if self.r_when_identifiable and np.trace(upd.Pzz) > 2.0 * np.trace(self.R[blk]):
+            # the predicted state uncertainty dominates the innovation: a large
+            # innovation says more about the state than about the receiver noise
+            return self.Q, self.R
+        R_new = (1.0 - d) * self.R[blk] + d * (np.outer(y, y) - eta @ eta.T)  # eq. 39
         # keep R positive definite: the subtraction may remove too much
         w, U = np.linalg.eigh(0.5 * (R_new + R_new.T))
-        self.R = (U * np.maximum(w, self.r_floor)) @ U.T
+        self.R = self.R.copy()
+        self.R[blk] = (U * np.clip(w, self.r_floor, self.r_ceiling)) @ U.T
         return self.Q, self.R

@@ -5,6 +5,8 @@ act on one state (n,); they are applied column by column to the cubature points.
 
 Shapes: ``x`` (n,), ``P`` and ``S`` (n, n) with ``P = S S^T`` (S lower
 triangular), ``Q``/``R`` and their square roots ``SQ``/``SR``, ``z`` (m,).
+A function marked with :func:`batched` takes all points at once as columns
+(n, 2n), which is much faster than one call per point.
 """
 from dataclasses import dataclass
 
@@ -28,11 +30,34 @@ def tria(A):
 
 
 def chol_lower(P):
-    """Lower Cholesky factor of a symmetric positive (semi-)definite matrix."""
+    """Lower Cholesky factor of a symmetric positive definite matrix."""
     return cholesky(0.5 * (P + P.T), lower=True)
 
 
+def sqrt_psd(A):
+    """Return a square root ``L`` with ``L L^T = A`` for a positive *semi*-definite ``A``.
+
+    Cholesky when ``A`` is definite; otherwise the symmetric eigen-root with
+    negative round-off eigenvalues clipped to zero. Only ``L L^T`` matters where
+    it is used (inside ``Tria``), so it need not be triangular.
+    """
+    A = 0.5 * (A + A.T)
+    try:
+        return cholesky(A, lower=True)
+    except np.linalg.LinAlgError:
+        w, U = np.linalg.eigh(A)
+        return U * np.sqrt(np.clip(w, 0.0, None))
+
+
+def batched(fn):
+    """Mark ``fn`` as taking a batch of states as columns (n, N) and returning (m, N)."""
+    fn.batched = True
+    return fn
+
+
 def _propagate(fn, X):
+    if getattr(fn, 'batched', False):
+        return fn(X)
     return np.column_stack([fn(X[:, i]) for i in range(X.shape[1])])
 
 

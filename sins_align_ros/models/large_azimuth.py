@@ -48,35 +48,52 @@ def C_n_nprime(phi):
 
 
 def derivative(x, f_n, v_n, lat, h):
-    """Continuous-time ``x'`` (10,) at specific force ``f_n`` and velocity ``v_n`` (ENU).
+    """Continuous-time ``x'`` at specific force ``f_n`` and velocity ``v_n`` (ENU, (3,)).
 
-    ``lat`` (rad), ``h`` (m) are the navigation position; noise terms are not included.
+    ``x`` is one state (10,) or a batch of states as columns (10, N), e.g. all
+    cubature points at once; the result has the same shape. ``lat`` (rad), ``h``
+    (m) are the navigation position; noise terms are not included.
     """
-    dv = np.array([x[0], x[1], 0.0])
-    dlat = x[3] / (earth.radii(lat)[0] + h)
-    phi = x[4:7]
-    eps = x[7:10]
+    x = np.asarray(x, dtype=float)
+    dvE, dvN, dpN = x[0], x[1], x[3]
+    pe, pn, pu = x[4], x[5], x[6]
     R_M, R_N = earth.radii(lat)
+    Rm, Rn = R_M + h, R_N + h
+    sl, cl = np.sin(lat), np.cos(lat)
+    dlat = dpN / Rm
     w_ie = earth.w_ie_n(lat)
-    w_en = earth.w_en_n(lat, h, v_n)
-    w_in = w_ie + w_en
-    dw_ie = earth.OMEGA_IE * np.array([0.0, -np.sin(lat) * dlat, np.cos(lat) * dlat])
-    dw_en = np.array([-dv[1] / (R_M + h), dv[0] / (R_N + h),
-                      dv[0] * np.tan(lat) / (R_N + h)
-                      + v_n[0] * dlat / ((R_N + h) * np.cos(lat) ** 2)])
-    C = C_n_nprime(phi)
-    dv_dot = ((C - np.eye(3)) @ f_n - np.cross(2.0 * w_ie + w_en, dv)
-              - np.cross(2.0 * dw_ie + dw_en, v_n))
-    phi_dot = (np.eye(3) - C) @ w_in + dw_ie + dw_en - eps
-    out = np.zeros(N_STATES)
-    out[0:2] = dv_dot[:2]
-    out[2:4] = x[0:2]
-    out[4:7] = phi_dot
+    w_in = w_ie + earth.w_en_n(lat, h, v_n)
+    a = 2.0 * w_ie + (w_in - w_ie)                 # 2 w_ie + w_en
+    # b = 2 dw_ie + dw_en (per state)
+    b0 = -dvN / Rm
+    b1 = -2.0 * earth.OMEGA_IE * sl * dlat + dvE / Rn
+    b2 = (2.0 * earth.OMEGA_IE * cl * dlat + dvE * np.tan(lat) / Rn
+          + v_n[0] * dlat / (Rn * cl ** 2))
+    c, s = np.cos(pu), np.sin(pu)
+    cm1 = c - 1.0
+    fE, fN, fU = f_n
+
+    out = np.zeros_like(x)
+    # (C_n^n' - I) f_n - a x dV - b x V (east, north rows)
+    out[0] = cm1 * fE + s * fN - pn * fU + a[2] * dvN - (b1 * v_n[2] - b2 * v_n[1])
+    out[1] = -s * fE + cm1 * fN + pe * fU - a[2] * dvE - (b2 * v_n[0] - b0 * v_n[2])
+    out[2] = dvE
+    out[3] = dvN
+    # (I - C_n^n') w_in + dw_in - eps, with dw_in = dw_ie + dw_en
+    wE, wN, wU = w_in
+    dwie = earth.OMEGA_IE * dlat
+    out[4] = -(cm1 * wE + s * wN - pn * wU) + b0 - x[7]
+    out[5] = -(-s * wE + cm1 * wN + pe * wU) - dwie * sl + dvE / Rn - x[8]
+    out[6] = (-((pn * c + pe * s) * wE + (pn * s - pe * c) * wN) + dwie * cl
+              + dvE * np.tan(lat) / Rn + v_n[0] * dlat / (Rn * cl ** 2) - x[9])
     return out
 
 
 def propagate(x, f_n, v_n, lat, h, dt, substeps=1):
-    """Discrete transition ``f(x)`` over ``dt`` by classical Runge-Kutta (seed 000 eq. 6)."""
+    """Discrete transition ``f(x)`` over ``dt`` by classical Runge-Kutta (seed 000 eq. 6).
+
+    ``x`` (10,) or a batch (10, N) of column states.
+    """
     step = dt / substeps
     for _ in range(substeps):
         k1 = derivative(x, f_n, v_n, lat, h)

@@ -94,6 +94,7 @@ class Strapdown:
         self._v_prev = self.v_n.copy()
         self._pos_prev = np.array([self.lat, self.lon, self.h])
         self._steps = 0
+        self.dv_sf = np.zeros(3)
 
     @property
     def position(self):
@@ -150,6 +151,8 @@ class Strapdown:
         else:
             dv_g = g_n * dt
         v_new = v + dv_sf + dv_g
+        #: specific-force velocity increment of the last update in ENU (3,), for error models
+        self.dv_sf = dv_sf
         if opt.hold_vertical:
             v_new[2] = 0.0
 
@@ -173,6 +176,89 @@ class Strapdown:
         self.v_n = v_new
         self._dtheta_prev = dtheta
         self._dv_prev = dv
+
+    def step(self, dtheta, dv, dt):
+        """One sample of :meth:`update` in scalar float arithmetic (moving-base fast path).
+
+        The same equations; the Earth quantities (radii, gravity, sin/cos of the
+        latitude) are refreshed when the latitude moves by more than 1e-7 rad
+        (0.6 m) or the height by more than 0.01 m, which changes the result by
+        less than 1e-9 relative (a test keeps the two paths together). Several
+        times faster than :meth:`update` for one sample. Returns ``C_b_n``.
+        """
+        ax, ay, az = float(dtheta[0]), float(dtheta[1]), float(dtheta[2])
+        bx, by, bz = float(dv[0]), float(dv[1]), float(dv[2])
+        px, py, pz = self._dtheta_prev.tolist()
+        qx, qy, qz = self._dv_prev.tolist()
+        opt = self.options
+        fx = ax + (py * az - pz * ay) / 12.0
+        fy = ay + (pz * ax - px * az) / 12.0
+        fz = az + (px * ay - py * ax) / 12.0
+        rx, ry, rz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+        ux = (bx + 0.5 * rx + (ay * rz - az * ry) / 6.0
+              + ((py * bz - pz * by) + (qy * az - qz * ay)) / 12.0)
+        uy = (by + 0.5 * ry + (az * rx - ax * rz) / 6.0
+              + ((pz * bx - px * bz) + (qz * ax - qx * az)) / 12.0)
+        uz = (bz + 0.5 * rz + (ax * ry - ay * rx) / 6.0
+              + ((px * by - py * bx) + (qx * ay - qy * ax)) / 12.0)
+        v0, v1, v2 = self.v_n.tolist()
+        w0, w1, w2 = self._v_prev.tolist()
+        m0, m1, m2 = 1.5 * v0 - 0.5 * w0, 1.5 * v1 - 0.5 * w1, 1.5 * v2 - 0.5 * w2
+        lat, h = self.lat, self.h
+        if opt.update_position:
+            lat_m = 1.5 * lat - 0.5 * self._pos_prev[0]
+            h_m = 1.5 * h - 0.5 * self._pos_prev[2]
+        else:
+            lat_m, h_m = lat, h
+        e = self._earth_cache(lat_m, h_m)
+        sl, cl, tl, RM, RN, g = e
+        W = earth.OMEGA_IE
+        ie1, ie2 = W * cl, W * sl
+        if opt.transport_rate:
+            en0, en1 = -m1 / (RM + h_m), m0 / (RN + h_m)
+            en2 = en1 * tl
+        else:
+            en0 = en1 = en2 = 0.0
+        zx, zy, zz = en0 * dt, (ie1 + en1) * dt, (ie2 + en2) * dt
+        C0 = self.C_b_n.ravel().tolist()
+        sx = C0[0] * ux + C0[1] * uy + C0[2] * uz
+        sy = C0[3] * ux + C0[4] * uy + C0[5] * uz
+        sz = C0[6] * ux + C0[7] * uy + C0[8] * uz
+        sx, sy, sz = (sx - 0.5 * (zy * sz - zz * sy), sy - 0.5 * (zz * sx - zx * sz),
+                      sz - 0.5 * (zx * sy - zy * sx))
+        n0, n1, n2 = v0 + sx, v1 + sy, v2 + sz - g * dt
+        if opt.coriolis:
+            c0, c1, c2 = en0, 2.0 * ie1 + en1, 2.0 * ie2 + en2
+            n0 -= (c1 * m2 - c2 * m1) * dt
+            n1 -= (c2 * m0 - c0 * m2) * dt
+            n2 -= (c0 * m1 - c1 * m0) * dt
+        if opt.hold_vertical:
+            n2 = 0.0
+        self.dv_sf = np.array([sx, sy, sz])
+        if opt.update_position:
+            self._pos_prev = np.array([lat, self.lon, h])
+            a0, a1, a2 = 0.5 * (v0 + n0), 0.5 * (v1 + n1), 0.5 * (v2 + n2)
+            h_avg = h + 0.25 * (v2 + n2) * dt
+            lat_avg = lat + 0.5 * a1 / (RM + h_avg) * dt
+            self.lat = lat + a1 / (RM + h_avg) * dt
+            self.lon += a0 / ((RN + h_avg) * math.cos(lat_avg)) * dt
+            self.h = h + a2 * dt
+        C = _mm9(_mm9(_rodrigues9(-zx, -zy, -zz), C0), _rodrigues9(fx, fy, fz))
+        self._steps += 1
+        self.C_b_n = orthonormal_if_needed(np.array(C).reshape(3, 3), self._steps, 1)
+        self._v_prev = self.v_n
+        self.v_n = np.array([n0, n1, n2])
+        self._dtheta_prev = np.array([ax, ay, az])
+        self._dv_prev = np.array([bx, by, bz])
+        return self.C_b_n
+
+    def _earth_cache(self, lat, h):
+        c = getattr(self, '_ec', None)
+        if c is None or abs(lat - c[0]) > 1e-7 or abs(h - c[1]) > 0.01:
+            R_M, R_N = earth.radii(lat)
+            self._ec = c = (lat, h, (math.sin(lat), math.cos(lat), math.tan(lat), float(R_M),
+                                     float(R_N), float(earth.gravity(lat, h))))
+        return c[2]
 
     def run(self, dtheta, dv, dt):
         """Process N samples and record the state after each.

@@ -1,7 +1,9 @@
 """alignment_node: SINS initial alignment from sensor_msgs/Imu (and GNSS position).
 
 Subscribes ``imu/data_raw`` (sensor_msgs/Imu; best effort with a deep queue so
-it takes both best-effort and reliable publishers) and ``gnss/fix``. Every IMU
+it takes both best-effort and reliable publishers), ``gnss/fix`` and
+``gnss/vel`` (geometry_msgs/TwistWithCovarianceStamped, ENU; used by the
+moving-base filters ckf and asckf). Every IMU
 sample goes through :class:`~sins_align_ros.align.imu_input.ImuInput` (input
 checks) and :class:`~sins_align_ros.align.pipeline.AlignmentPipeline` — the
 same objects the replay tool uses — and produces:
@@ -22,7 +24,7 @@ import sys
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
-from geometry_msgs.msg import Vector3Stamped
+from geometry_msgs.msg import TwistWithCovarianceStamped, Vector3Stamped
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
@@ -58,17 +60,20 @@ class AlignmentNode(Node):
                              history=HistoryPolicy.KEEP_LAST)
         self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_qos)
         self.create_subscription(NavSatFix, 'gnss/fix', self._on_fix, qos_profile_sensor_data)
+        self.create_subscription(TwistWithCovarianceStamped, 'gnss/vel', self._on_vel,
+                                 qos_profile_sensor_data)
         self.pub_imu = self.create_publisher(Imu, 'imu/data', 50)
         self.pub_euler = self.create_publisher(Vector3Stamped, '~/euler', 50)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.create_service(Trigger, '~/reset', self._on_reset)
-        self.counts = {'imu': 0, 'wrong_frame': 0, 'gnss': 0, 'gnss_no_fix': 0}
+        self.counts = {'imu': 0, 'wrong_frame': 0, 'gnss': 0, 'gnss_no_fix': 0, 'gnss_vel': 0,
+                       'gnss_vel_invalid': 0}
         self._last_imu_wall = None
         self._events = []
         self._diag_timer = self.create_timer(self.p['diagnostic_period'],
                                              self._publish_diagnostics)
         self.get_logger().info(
-            f"fine filter {self.pipeline.model.name}, coarse {self.p['coarse_method']} "
+            f"fine filter {self.p['fine_filter']}, coarse {self.p['coarse_method']} "
             f"{self.p['coarse_duration']:.0f} s; waiting for imu/data_raw")
 
     # -- parameters -------------------------------------------------------------------
@@ -116,10 +121,28 @@ class AlignmentNode(Node):
               and np.isfinite([msg.latitude, msg.longitude, msg.altitude]).all())
         if ok:
             self.counts['gnss'] += 1
+            pos_var = None
+            if msg.position_covariance_type != NavSatFix.COVARIANCE_TYPE_UNKNOWN:
+                c = msg.position_covariance
+                if np.isfinite([c[0], c[4]]).all() and c[0] > 0 and c[4] > 0:
+                    pos_var = (c[0], c[4])
             self.pipeline.position_fix(stamp_to_sec(msg.header.stamp), msg.latitude,
-                                       msg.longitude, msg.altitude)
+                                       msg.longitude, msg.altitude, pos_var=pos_var)
         else:
             self.counts['gnss_no_fix'] += 1
+
+    def _on_vel(self, msg):
+        v = msg.twist.twist.linear
+        vel = (v.x, v.y, v.z)
+        if not np.isfinite(vel).all():
+            self.counts['gnss_vel_invalid'] += 1
+            return
+        self.counts['gnss_vel'] += 1
+        c = msg.twist.covariance
+        vel_var = None
+        if np.isfinite([c[0], c[7]]).all() and c[0] > 0 and c[7] > 0:
+            vel_var = (c[0], c[7])
+        self.pipeline.velocity_fix(stamp_to_sec(msg.header.stamp), vel, vel_var=vel_var)
 
     def _on_imu(self, msg):
         self._last_imu_wall = self.get_clock().now()
@@ -210,6 +233,8 @@ class AlignmentNode(Node):
 def _fmt(v):
     if isinstance(v, float):
         return f'{v:.6g}'
+    if isinstance(v, (list, tuple)):
+        return ' '.join(_fmt(float(x)) for x in v)
     return str(v)
 
 

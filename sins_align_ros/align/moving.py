@@ -1,0 +1,263 @@
+"""Moving-base GNSS-aided fine alignment with a large heading error (seed 000).
+
+The full strapdown mechanization (transport rate, Coriolis, position) runs at
+IMU rate; at every GNSS epoch the 10-state large-azimuth error model
+(:mod:`~sins_align_ros.models.large_azimuth`, seed 000 eq. 1-6) is propagated
+over the interval by RK4 at the interval's mean specific force and velocity,
+updated with the GNSS position difference (and optionally velocity), and its
+misalignment, velocity and position estimates are fed back into the
+mechanization (closed loop). The gyro drift state stays in the filter; it is
+resolved in the computed frame, so a heading correction turns it too.
+
+Filters (switchable one improvement at a time, seed 000 sec. 3):
+``square_root=False`` is the conventional CKF (eq. 22-34); with
+``square_root=True`` the QR square-root CKF, plus ``fading`` (multiple fading
+factors, eq. 7-17, 35) and ``adaptive`` (Sage-Husa Q/R with the divergence
+test, eq. 39, 20). All three on is the ASCKF.
+
+Without GNSS for :data:`MAX_PREDICT` seconds the filter predicts without an
+update, so an outage only widens the covariance.
+"""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..filters.asckf import ASCKF, CKF
+from ..filters.cubature import batched
+from ..models import large_azimuth as la
+from ..nav import earth
+from ..nav.frames import orthonormalize
+from ..nav.mechanization import MechanizationOptions, Strapdown
+
+I_V, I_P, I_PHI, I_EPS = slice(0, 2), slice(2, 4), slice(4, 7), slice(7, 10)
+#: default fading proportions (seed 000 eq. 8): velocity, position and misalignment fade,
+#: the gyro drift does not (fading a random constant with a 1e-16 variance made every
+#: run diverge in bench/moving_base.py: the factors compound over the V_k memory)
+ALPHA = np.r_[np.ones(7), np.zeros(3)]
+#: chi-square 99% points for 2 and 4 measurements: fading only on abnormal innovations
+FADING_GATE = {2: 9.21, 4: 13.28}
+#: the longest interval the error model is propagated without a measurement, s
+MAX_PREDICT = 2.0
+
+
+class FilterDiverged(RuntimeError):
+    """The filter's numbers became non-finite or singular; the caller restarts alignment."""
+
+
+@dataclass
+class GnssFix:
+    """One GNSS epoch: position (rad, rad, m), optional ENU velocity (3,) and variances.
+
+    ``pos_var`` (2,): east and north position variance (m^2) the receiver reports,
+    or None; ``vel_var`` (2,): east and north velocity variance ((m/s)^2) or None.
+    """
+
+    t: float
+    lat: float
+    lon: float
+    h: float
+    v_n: np.ndarray = None
+    pos_var: np.ndarray = None
+    vel_var: np.ndarray = None
+
+
+class MovingBaseAlignment:
+    """Mechanization + seed 000 filter; see the module docstring.
+
+    Parameters
+    ----------
+    C_b_n : ndarray (3, 3)
+        Initial attitude (from coarse alignment), body FLU -> ENU.
+    v_n : ndarray (3,)
+        Initial ENU velocity, m/s.
+    lat, lon, h : float
+        Initial position (rad, rad, m).
+    P0 : ndarray (10, 10)
+        Initial covariance of the error state (see ``large_azimuth.LABELS``).
+    Qc : ndarray (10,)
+        Continuous-time noise densities (per second); the discrete Q of an
+        interval T is ``diag(Qc) T``. The adaptive filter starts from ``Qc * 1 s``.
+    R : ndarray (m, m)
+        Measurement noise: position east/north (m^2), then velocity east/north
+        ((m/s)^2) when ``use_velocity``.
+    use_velocity : bool
+        Measure the GNSS velocity as well as the position.
+    square_root, fading, adaptive : bool
+        Which of seed 000's filters (module docstring).
+    use_reported_cov : bool
+        Take R from each fix's reported variances (non-adaptive filters only).
+    alpha, rho, beta, b, gate, lambda_max, adapt_q, r_ceiling
+        Strong-tracking and Sage-Husa settings (:class:`~sins_align_ros.filters.asckf.ASCKF`).
+        Defaults differ from the seed in documented ways: ``alpha`` (:data:`ALPHA`)
+        keeps the drift states out of the fading; ``adapt_q=False`` estimates R
+        only (adapting Q as well let Q absorb the measurement noise and the filter
+        diverged); ``gate=False`` lets R fall as well as rise (with the seed's
+        eq. 20 gate R is only ever updated from large innovations and ran away to
+        1e8 times the truth after a 3 deg heading error met a 0.1 g acceleration);
+        ``r_ceiling`` bounds R at 1e4 times its initial value; the fading applies
+        only when the innovation fails a 99% chi-square test (:data:`FADING_GATE`;
+        with filter Q nine times the truth the ungated factors compounded to 9 deg
+        of tilt sigma and a singular innovation covariance); and R is learnt only
+        from epochs where it dominates the innovation covariance (a 30 deg heading
+        error met by an acceleration otherwise drove R to 5000 times the truth).
+    """
+
+    def __init__(self, C_b_n, v_n, lat, lon, h, P0, Qc, R, use_velocity=False,
+                 square_root=True, fading=True, adaptive=True, use_reported_cov=False,
+                 alpha=ALPHA, rho=0.95, beta=3.0, b=0.97, gate=False, lambda_max=np.inf,
+                 adapt_q=False, r_ceiling=1e4):
+        self.mech = Strapdown(C_b_n, v_n, lat, lon, h, MechanizationOptions())
+        self.Qc = np.asarray(Qc, dtype=float)
+        self.use_velocity = bool(use_velocity)
+        self.rows = np.array([2, 3, 0, 1] if use_velocity else [2, 3])
+        R = np.asarray(R, dtype=float)
+        if square_root:
+            self.kf = ASCKF(np.zeros(la.N_STATES), P0, np.diag(self.Qc), R, fading=fading,
+                            adaptive=adaptive, alpha=alpha, rho=rho, beta=beta, b=b, gate=gate,
+                            lambda_max=lambda_max, adapt_q=adapt_q, r_ceiling=r_ceiling,
+                            r_when_identifiable=True, fading_gate=FADING_GATE)
+        else:
+            self.kf = CKF(np.zeros(la.N_STATES), P0, np.diag(self.Qc), R)
+        self.adaptive = bool(square_root and adaptive)
+        self.use_reported_cov = bool(use_reported_cov) and not self.adaptive
+        self.R_nominal = R.copy()
+        self._T = 0.0
+        self._dv_sum = np.zeros(3)
+        self._v_sum = np.zeros(3)
+        self.n_updates = 0
+        self.n_predict_only = 0
+        self.last_nis = float('nan')
+        self.last_h = h
+
+    # -- IMU rate -------------------------------------------------------------------
+    def step_imu(self, dtheta, dv, dt):
+        """Mechanize one sample; returns the current ``C_b_n`` (3, 3)."""
+        m = self.mech
+        C = m.step(dtheta, dv, dt)
+        self._T += dt
+        self._dv_sum += m.dv_sf
+        self._v_sum += m.v_n * dt
+        if self._T >= MAX_PREDICT:
+            fx = self._transition()
+            self.kf.Q = np.diag(self.Qc * self._T) if not self.adaptive else self.kf.Q
+            self.kf.predict(fx)
+            self.n_predict_only += 1
+            self._restart_interval()
+        return C
+
+    def _restart_interval(self):
+        self._T = 0.0
+        self._dv_sum = np.zeros(3)
+        self._v_sum = np.zeros(3)
+
+    def _transition(self):
+        """Batched ``f(x)`` over the interval since the last filter epoch."""
+        T = self._T
+        if T <= 0.0:
+            return batched(lambda X: X)
+        f_n = self._dv_sum / T
+        v_n = self._v_sum / T
+        lat, h = self.mech.lat, self.mech.h
+        sub = max(1, int(math.ceil(T / 1.0)))
+        return batched(lambda X: la.propagate(X, f_n, v_n, lat, h, T, substeps=sub))
+
+    # -- GNSS epochs ------------------------------------------------------------------
+    def measurement(self, fix, t_now):
+        """Innovation vector of a fix taken at ``fix.t`` <= ``t_now`` (the last IMU stamp).
+
+        Returns ``(z, idx)``: position difference east/north (m), then velocity
+        difference (m/s) when the fix has one and velocity is used; ``idx`` the
+        rows of the full measurement vector present.
+        """
+        m = self.mech
+        back = max(0.0, t_now - fix.t)
+        R_M, R_N = earth.radii(m.lat)
+        lat = m.lat - m.v_n[1] * back / (R_M + m.h)
+        lon = m.lon - m.v_n[0] * back / ((R_N + m.h) * math.cos(m.lat))
+        z = [(lon - fix.lon) * (R_N + m.h) * math.cos(m.lat), (lat - fix.lat) * (R_M + m.h)]
+        idx = [0, 1]
+        if self.use_velocity and fix.v_n is not None:
+            z += [m.v_n[0] - fix.v_n[0], m.v_n[1] - fix.v_n[1]]
+            idx += [2, 3]
+        return np.array(z), np.array(idx)
+
+    def update(self, fix, t_now):
+        """Filter epoch for ``fix``: predict over the interval, update, feed back.
+
+        Returns the :class:`~sins_align_ros.filters.cubature.CubatureUpdate`.
+        """
+        z, idx = self.measurement(fix, t_now)
+        fx = self._transition()
+        rows = self.rows[idx]
+        hx = batched(lambda X: X[rows])
+        kf = self.kf
+        if not self.adaptive:
+            kf.Q = np.diag(self.Qc * max(self._T, 1e-3))
+            if self.use_reported_cov:
+                kf.R = self.R_nominal.copy()
+                if fix.pos_var is not None:
+                    kf.R[0, 0], kf.R[1, 1] = fix.pos_var
+                if self.use_velocity and fix.vel_var is not None:
+                    kf.R[2, 2], kf.R[3, 3] = fix.vel_var
+        try:
+            upd = kf.step(fx, z, hx, idx)
+            self.last_nis = float(upd.y @ np.linalg.solve(upd.Pzz, upd.y))
+        except (np.linalg.LinAlgError, ValueError):
+            upd = None
+        if upd is None or not (np.all(np.isfinite(kf.x)) and np.all(np.isfinite(kf.P))):
+            raise FilterDiverged(f'filter diverged at t={fix.t:.3f} s (non-finite or '
+                                 f'singular covariance)')
+        self.n_updates += 1
+        self._restart_interval()
+        self._feedback(fix)
+        return upd
+
+    def _feedback(self, fix):
+        """Move the estimated errors into the mechanization (closed loop)."""
+        m, kf = self.mech, self.kf
+        x = kf.x
+        C_n_np = la.C_n_nprime(x[I_PHI])
+        m.C_b_n = orthonormalize(C_n_np.T @ m.C_b_n)
+        dv = np.array([x[0], x[1], 0.0])
+        m.v_n = m.v_n - dv
+        m._v_prev = m._v_prev - dv
+        R_M, R_N = earth.radii(m.lat)
+        dlat = x[3] / (R_M + m.h)
+        dlon = x[2] / ((R_N + m.h) * math.cos(m.lat))
+        m.lat -= dlat
+        m.lon -= dlon
+        m._pos_prev = m._pos_prev - np.array([dlat, dlon, 0.0])
+        # vertical channel: not in the model; held to the GNSS height (and velocity)
+        m.h = fix.h
+        m.v_n[2] = fix.v_n[2] if fix.v_n is not None else 0.0
+        m._pos_prev[2] = fix.h
+        # the corrected frame differs from the old computed one by C_n^n'^T: turn the
+        # drift (resolved in the computed frame) and the residual tilts with it
+        T = np.eye(la.N_STATES)
+        T[I_PHI, I_PHI] = C_n_np.T
+        T[I_EPS, I_EPS] = C_n_np.T
+        kf.transform(T)
+        kf.x[:7] = 0.0
+
+    # -- output -------------------------------------------------------------------------
+    @property
+    def P(self):
+        """Error-state covariance (10, 10)."""
+        return self.kf.P
+
+    def attitude_cov(self):
+        """Misalignment covariance about ENU (3, 3), rad^2."""
+        return self.kf.P[I_PHI, I_PHI]
+
+    def status(self):
+        """Filter internals for diagnostics (plain Python types)."""
+        kf = self.kf
+        s = {'filter_updates': self.n_updates, 'predict_only_epochs': self.n_predict_only,
+             'innovation_nis': self.last_nis, 'divergence_test_fired': kf.divergence_flags,
+             'Q_diag': [float(v) for v in np.diag(kf.Q)],
+             'R_diag': [float(v) for v in np.diag(kf.R)],
+             'gyro_drift_dph': [float(v) for v in kf.x[I_EPS] / (math.pi / 180.0 / 3600.0)]}
+        if getattr(kf, 'lam', None) is not None:
+            s['fading_factors'] = [float(v) for v in kf.lam]
+        return s

@@ -1,0 +1,173 @@
+"""Moving-base alignment (seed 000): model batch form, fast mechanization, ASCKF pieces,
+the pipeline on the simulated ship against truth, and the fog_mems car recording."""
+import numpy as np
+import pytest
+
+from conftest import shared_data
+from sins_align_ros.align.moving import GnssFix, MovingBaseAlignment
+from sins_align_ros.align.pipeline import AlignmentPipeline, feed_arrays
+from sins_align_ros.filters.adaptive import SageHusa
+from sins_align_ros.filters.asckf import ASCKF
+from sins_align_ros.filters.cubature import CubatureUpdate, batched
+from sins_align_ros.models import large_azimuth as la
+from sins_align_ros.nav.frames import ARCMIN, DEG, attitude_error, euler_to_dcm, quat_to_dcm
+from sins_align_ros.nav.mechanization import Strapdown
+from sins_align_ros.sim.presets import scenario
+from sins_align_ros.sim.scenario import ScenarioStream
+
+MARINE = {'gyro_bias_dph': 0.003, 'gyro_arw_dpsh': 0.0005, 'accel_bias_ug': 30.0,
+          'accel_vrw_ug_rthz': 5.0, 'gnss_pos_sigma_m': 0.2}
+
+
+def test_model_on_a_batch_of_states_equals_column_by_column():
+    rng = np.random.default_rng(3)
+    scale = np.r_[0.1, 0.1, 3, 3, 1e-3, 1e-3, 2.0, 1e-7, 1e-7, 1e-7]
+    X = rng.normal(size=(10, 20)) * scale[:, None]
+    f_n, v_n = np.array([0.3, -0.2, 9.8]), np.array([5.0, 3.0, 0.1])
+    batch = la.propagate(X, f_n, v_n, 0.8, 10.0, 1.0)
+    cols = np.column_stack([la.propagate(X[:, i], f_n, v_n, 0.8, 10.0, 1.0) for i in range(20)])
+    np.testing.assert_allclose(batch, cols, rtol=0, atol=1e-15)
+
+
+def test_scalar_mechanization_step_equals_update():
+    rng = np.random.default_rng(4)
+    a = Strapdown(np.eye(3), np.array([5.0, 5.0, 0.2]), 0.8, 2.2, 10.0)
+    b = Strapdown(np.eye(3), np.array([5.0, 5.0, 0.2]), 0.8, 2.2, 10.0)
+    for _ in range(3000):
+        dth = rng.normal(size=3) * 1e-3
+        dv = np.array([0.001, 0.002, 0.098]) + rng.normal(size=3) * 1e-2
+        a.update(dth, dv, 0.01)
+        b.step(dth, dv, 0.01)
+    np.testing.assert_allclose(b.C_b_n, a.C_b_n, atol=1e-10)
+    np.testing.assert_allclose(b.v_n, a.v_n, atol=1e-6)
+    np.testing.assert_allclose(b.dv_sf, a.dv_sf, atol=1e-9)
+    assert abs(b.lat - a.lat) * 6.4e6 < 1e-3 and abs(b.h - a.h) < 1e-3
+
+
+def test_sage_husa_updates_only_the_measured_block_and_respects_its_ceiling():
+    R0 = np.diag([0.04, 0.04, 0.01, 0.01])
+    sh = SageHusa(np.eye(2), R0, b=0.5, gate=False, adapt_q=False, r_ceiling=100.0)
+    y = np.array([50.0, -50.0])
+    upd = CubatureUpdate(y=y, z_pred=np.zeros(2), Pzz=np.eye(2), Pxz=np.zeros((2, 2)),
+                         K=np.zeros((2, 2)), eta=np.zeros((2, 4)), chi=np.zeros((2, 4)))
+    for _ in range(20):
+        _, R = sh.update(upd, idx=np.array([0, 1]))
+    np.testing.assert_array_equal(R[2:, 2:], R0[2:, 2:])
+    assert np.linalg.eigvalsh(R[:2, :2]).max() <= 100.0 * np.trace(R0) / 4 * (1 + 1e-12)
+
+
+def test_asckf_subset_update_with_all_rows_equals_the_full_update():
+    rng = np.random.default_rng(5)
+    P0 = np.diag([1.0, 2.0, 0.5])
+    Q, R = np.eye(3) * 0.01, np.diag([0.1, 0.2])
+    H = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 1.0]])
+    fx = batched(lambda X: X * 0.99)
+    hx = batched(lambda X: H @ X)
+    a = ASCKF(np.zeros(3), P0, Q, R)
+    b = ASCKF(np.zeros(3), P0, Q, R)
+    for _ in range(10):
+        z = rng.normal(size=2)
+        a.step(fx, z, hx)
+        b.step(fx, z, hx, idx=np.array([0, 1]))
+    np.testing.assert_allclose(a.x, b.x, atol=1e-14)
+    np.testing.assert_allclose(a.P, b.P, atol=1e-14)
+
+
+def _ship(seconds, seed=1):
+    sc = scenario('seed000_case1', duration=seconds)
+    return ScenarioStream(sc, seed=seed).next_block(int(seconds * sc.imu_rate_hz))
+
+
+@pytest.mark.parametrize('fine_filter', ['ckf', 'asckf'])
+def test_ship_pipeline_coarse_plus_fine_reaches_arcminutes_against_truth(fine_filter):
+    """Seed 000 ship, 600 s: i0 + GNSS track coarse, large-azimuth fine filter."""
+    b = _ship(600.0)
+    p = AlignmentPipeline({'fine_filter': fine_filter, **MARINE})
+    p.start_clock(0.0)
+    out = feed_arrays(p, b.imu, b.gnss, use_velocity=False)
+    assert list(dict.fromkeys(out.phase))[:2] == ['coarse', 'fine']
+    st = p.status()
+    assert st['coarse_heading_source'] == 'gnss_track'
+    assert st['gnss_used'] >= 530 and st['gnss_late'] == 0
+    err = attitude_error(quat_to_dcm(out.q[-1]), euler_to_dcm(b.imu.euler[-1]))
+    sig = np.sqrt(np.diag(out.P_phi[-1]))
+    assert np.all(np.abs(err[:2]) < 1.0 * ARCMIN), err / ARCMIN
+    assert abs(err[2]) < 10.0 * ARCMIN, err / ARCMIN
+    assert np.all(np.abs(err) <= 3.0 * sig + 0.2 * ARCMIN), (err / ARCMIN, sig / ARCMIN)
+    if fine_filter == 'asckf':
+        assert len(st['fading_factors']) == 10 and len(st['R_diag']) == 2
+
+
+@pytest.mark.parametrize('heading_err_deg', [30.0, 90.0, 180.0])
+def test_fine_filter_recovers_a_large_heading_error(heading_err_deg):
+    """Seed 000 ship, fine filter started 30/90/180 deg off in heading: arcminutes at 600 s."""
+    b = _ship(600.0, seed=2)
+    phi0 = np.array([0.03, 0.03, heading_err_deg]) * DEG
+    P0 = np.diag(np.r_[[0.1 ** 2] * 2, [2.0 ** 2] * 2, [(0.06 * DEG) ** 2] * 2,
+                       (heading_err_deg * DEG) ** 2, [(0.003 * DEG / 3600) ** 2] * 3])
+    Qc = np.r_[[(5e-6 * 9.8) ** 2] * 2, 0, 0, [(0.0005 * DEG / 60) ** 2] * 3, 0, 0, 0]
+    eng = MovingBaseAlignment(la.C_n_nprime(phi0) @ euler_to_dcm(b.imu.euler[0]),
+                              b.imu.v_n[0], *b.imu.pos[0], P0, Qc, np.eye(2) * 0.04)
+    gn, gi = b.gnss, 0
+    for k in range(1, len(b.imu.t)):
+        eng.step_imu(b.imu.dtheta[k], b.imu.dv[k], b.imu.t[k] - b.imu.t[k - 1])
+        while gi < len(gn.t) and gn.t[gi] <= b.imu.t[k] + 1e-9:
+            if gn.t[gi] > b.imu.t[0]:
+                eng.update(GnssFix(gn.t[gi], gn.lat[gi], gn.lon[gi], gn.h[gi]), b.imu.t[k])
+            gi += 1
+    phi = la.misalignment_of(eng.mech.C_b_n, euler_to_dcm(b.imu.euler[-1]))
+    assert abs(phi[2]) < 10.0 * ARCMIN, phi / ARCMIN
+    assert np.all(np.abs(phi[:2]) < 1.0 * ARCMIN), phi / ARCMIN
+
+
+def test_fog_mems_car_recording_heading_against_the_fog_reference():
+    """Real car data: MEMS IMU aided by the FOG-INS position/velocity, 100 s."""
+    from sins_align_ros.io.fog import read_fog_mems
+    imu_path, ref_path = shared_data('fog_mems_imu.csv'), shared_data('fog_mems_reference.csv')
+    rec = read_fog_mems(imu_path, ref_path)
+    p = AlignmentPipeline({'fine_filter': 'asckf', 'gyro_bias_dph': 200.0,
+                           'gyro_arw_dpsh': 1.0, 'accel_bias_ug': 2000.0,
+                           'accel_vrw_ug_rthz': 200.0, 'coarse_duration': 10.0,
+                           'gnss_pos_sigma_m': 0.5, 'gnss_vel_sigma_mps': 0.05})
+    p.start_clock(rec.t[0] - 0.01)
+    out = feed_arrays(p, rec.imu_like(), rec.gnss_like())
+    e = rec.errors(out)
+    assert e['t'] == pytest.approx(100.0, abs=0.02)
+    # measured 2026-11-22: heading +1.70 deg (sigma 2.05), roll -0.10, pitch -0.37 deg
+    assert abs(e['heading']) < 2.5 and abs(e['heading']) < 3.0 * e['sigma_yaw']
+    assert abs(e['roll']) < 0.4 and abs(e['pitch']) < 0.6
+    assert p.status()['coarse_velocity_source'] == 'gnss_velocity'
+
+
+def test_moving_filter_without_gnss_runs_unaided_and_says_so():
+    b = _ship(120.0)
+    p = AlignmentPipeline({'fine_filter': 'asckf', **MARINE})
+    p.start_clock(0.0)
+    out = feed_arrays(p, b.imu, None)
+    assert np.all(np.isfinite(out.q[-1]))
+    st = p.status()
+    assert st['gnss_used'] == 0 and st['predict_only_epochs'] >= 25
+    assert any('no GNSS velocity' in w for w in p.warnings)
+    # without aiding the uncertainty only grows
+    k = int(np.argmax(out.phase == 'fine'))
+    assert np.all(out.sigma[-1] >= out.sigma[k] * (1 - 1e-9))
+
+
+def test_a_diverged_filter_restarts_alignment_and_says_so():
+    """Wrong noise statistics can break the ASCKF: never a crash or a NaN attitude."""
+    b = _ship(200.0)
+    p = AlignmentPipeline({'fine_filter': 'asckf', **MARINE})
+    p.start_clock(0.0)
+    feed_arrays(p, _Slice(b.imu, 0, 6100), b.gnss)
+    assert p.engine is not None
+    p._diverged('filter diverged at t=61.000 s (test)')
+    assert p.phase == 'waiting' and p.engine is None
+    out = feed_arrays(p, _Slice(b.imu, 6100, 20000), None)
+    assert list(dict.fromkeys(out.phase))[:2] == ['coarse', 'fine']
+    assert np.all(np.isfinite(out.q[-1]))
+    assert any('alignment restarted from coarse' in w for w in p.warnings)
+
+
+class _Slice:
+    def __init__(self, imu, a, b):
+        self.t, self.dtheta, self.dv = imu.t[a:b], imu.dtheta[a:b], imu.dv[a:b]
