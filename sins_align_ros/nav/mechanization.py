@@ -186,21 +186,9 @@ class Strapdown:
         less than 1e-9 relative (a test keeps the two paths together). Several
         times faster than :meth:`update` for one sample. Returns ``C_b_n``.
         """
-        ax, ay, az = float(dtheta[0]), float(dtheta[1]), float(dtheta[2])
-        bx, by, bz = float(dv[0]), float(dv[1]), float(dv[2])
-        px, py, pz = self._dtheta_prev.tolist()
-        qx, qy, qz = self._dv_prev.tolist()
+        ax, ay, az, bx, by, bz, fx, fy, fz, ux, uy, uz = _coning_sculling(
+            dtheta, dv, self._dtheta_prev, self._dv_prev)
         opt = self.options
-        fx = ax + (py * az - pz * ay) / 12.0
-        fy = ay + (pz * ax - px * az) / 12.0
-        fz = az + (px * ay - py * ax) / 12.0
-        rx, ry, rz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-        ux = (bx + 0.5 * rx + (ay * rz - az * ry) / 6.0
-              + ((py * bz - pz * by) + (qy * az - qz * ay)) / 12.0)
-        uy = (by + 0.5 * ry + (az * rx - ax * rz) / 6.0
-              + ((pz * bx - px * bz) + (qz * ax - qx * az)) / 12.0)
-        uz = (bz + 0.5 * rz + (ax * ry - ay * rx) / 6.0
-              + ((px * by - py * bx) + (qx * ay - qy * ax)) / 12.0)
         v0, v1, v2 = self.v_n.tolist()
         w0, w1, w2 = self._v_prev.tolist()
         m0, m1, m2 = 1.5 * v0 - 0.5 * w0, 1.5 * v1 - 0.5 * w1, 1.5 * v2 - 0.5 * w2
@@ -243,13 +231,18 @@ class Strapdown:
             self.lat = lat + a1 / (RM + h_avg) * dt
             self.lon += a0 / ((RN + h_avg) * math.cos(lat_avg)) * dt
             self.h = h + a2 * dt
-        C = _mm9(_mm9(_rodrigues9(-zx, -zy, -zz), C0), _rodrigues9(fx, fy, fz))
+        return self._commit_scalar(C0, (zx, zy, zz), (fx, fy, fz), (n0, n1, n2),
+                                   (ax, ay, az), (bx, by, bz))
+
+    def _commit_scalar(self, C0, zeta, phi, v_new, dtheta, dv):
+        """End of a scalar step: attitude update, history, returns ``C_b_n``."""
+        C = _mm9(_mm9(_rodrigues9(-zeta[0], -zeta[1], -zeta[2]), C0), _rodrigues9(*phi))
         self._steps += 1
         self.C_b_n = orthonormal_if_needed(np.array(C).reshape(3, 3), self._steps, 1)
         self._v_prev = self.v_n
-        self.v_n = np.array([n0, n1, n2])
-        self._dtheta_prev = np.array([ax, ay, az])
-        self._dv_prev = np.array([bx, by, bz])
+        self.v_n = np.array(v_new)
+        self._dtheta_prev = np.array(dtheta)
+        self._dv_prev = np.array(dv)
         return self.C_b_n
 
     def _earth_cache(self, lat, h):
@@ -400,22 +393,8 @@ class StationaryStrapdown(Strapdown):
         about ten times faster than numpy for a single sample.
         Returns the new ``C_b_n`` (3, 3).
         """
-        ax, ay, az = float(dtheta[0]), float(dtheta[1]), float(dtheta[2])
-        bx, by, bz = float(dv[0]), float(dv[1]), float(dv[2])
-        px, py, pz = self._dtheta_prev.tolist()
-        qx, qy, qz = self._dv_prev.tolist()
-        # coning
-        fx = ax + (py * az - pz * ay) / 12.0
-        fy = ay + (pz * ax - px * az) / 12.0
-        fz = az + (px * ay - py * ax) / 12.0
-        # rotation + sculling
-        rx, ry, rz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-        ux = (bx + 0.5 * rx + (ay * rz - az * ry) / 6.0
-              + ((py * bz - pz * by) + (qy * az - qz * ay)) / 12.0)
-        uy = (by + 0.5 * ry + (az * rx - ax * rz) / 6.0
-              + ((pz * bx - px * bz) + (qz * ax - qx * az)) / 12.0)
-        uz = (bz + 0.5 * rz + (ax * ry - ay * rx) / 6.0
-              + ((px * by - py * bx) + (qx * ay - qy * ax)) / 12.0)
+        ax, ay, az, bx, by, bz, fx, fy, fz, ux, uy, uz = _coning_sculling(
+            dtheta, dv, self._dtheta_prev, self._dv_prev)
         wx, wy, wz = self._w_ie.tolist()
         zx, zy, zz = wx * dt, wy * dt, wz * dt
         C0 = self.C_b_n.ravel().tolist()
@@ -435,14 +414,31 @@ class StationaryStrapdown(Strapdown):
             n2 -= 2.0 * (wx * m1 - wy * m0) * dt
         if self.options.hold_vertical:
             n2 = 0.0
-        C = _mm9(_mm9(_rodrigues9(-zx, -zy, -zz), C0), _rodrigues9(fx, fy, fz))
-        self._steps += 1
-        self.C_b_n = orthonormal_if_needed(np.array(C).reshape(3, 3), self._steps, 1)
-        self._v_prev = self.v_n
-        self.v_n = np.array([n0, n1, n2])
-        self._dtheta_prev = np.array([ax, ay, az])
-        self._dv_prev = np.array([bx, by, bz])
-        return self.C_b_n
+        return self._commit_scalar(C0, (zx, zy, zz), (fx, fy, fz), (n0, n1, n2),
+                                   (ax, ay, az), (bx, by, bz))
+
+
+def _coning_sculling(dtheta, dv, dtheta_prev, dv_prev):
+    """Scalar coning and rotation/sculling terms of one sample (the scalar fast paths).
+
+    Returns the 12 floats ``dtheta (3), dv (3), phi (3), dv_b (3)`` of the module
+    docstring's coning and rotation + sculling formulas.
+    """
+    ax, ay, az = float(dtheta[0]), float(dtheta[1]), float(dtheta[2])
+    bx, by, bz = float(dv[0]), float(dv[1]), float(dv[2])
+    px, py, pz = dtheta_prev.tolist()
+    qx, qy, qz = dv_prev.tolist()
+    fx = ax + (py * az - pz * ay) / 12.0
+    fy = ay + (pz * ax - px * az) / 12.0
+    fz = az + (px * ay - py * ax) / 12.0
+    rx, ry, rz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    ux = (bx + 0.5 * rx + (ay * rz - az * ry) / 6.0
+          + ((py * bz - pz * by) + (qy * az - qz * ay)) / 12.0)
+    uy = (by + 0.5 * ry + (az * rx - ax * rz) / 6.0
+          + ((pz * bx - px * bz) + (qz * ax - qx * az)) / 12.0)
+    uz = (bz + 0.5 * rz + (ax * ry - ay * rx) / 6.0
+          + ((px * by - py * bx) + (qx * ay - qy * ax)) / 12.0)
+    return ax, ay, az, bx, by, bz, fx, fy, fz, ux, uy, uz
 
 
 def _rodrigues9(x, y, z):
