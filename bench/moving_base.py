@@ -29,8 +29,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from sins_align_ros.align.moving import (FilterDiverged, GnssFix,  # noqa: E402
-                                         MovingBaseAlignment)
+from sins_align_ros.align.moving import FilterDiverged, MovingBaseAlignment  # noqa: E402
 from sins_align_ros.align.pipeline import AlignmentPipeline, feed_arrays  # noqa: E402
 from sins_align_ros.models import large_azimuth as la  # noqa: E402
 from sins_align_ros.nav.frames import (ARCMIN, DEG, attitude_error, euler_to_dcm,  # noqa: E402
@@ -77,17 +76,9 @@ def run_fine(case, seed, variant, paper_p0=True, qscale=1.0, noise_profile=None,
     C0 = la.C_n_nprime(phi0) @ euler_to_dcm(b.imu.euler[0])
     eng = MovingBaseAlignment(C0, b.imu.v_n[0], *b.imu.pos[0], P0, Qc, R, square_root=sq,
                               fading=fad, adaptive=ad)
-    gn, gi, t_prev = b.gnss, 0, b.imu.t[0]
     t0 = time.perf_counter()
     try:
-        for k in range(1, n):
-            t = b.imu.t[k]
-            eng.step_imu(b.imu.dtheta[k], b.imu.dv[k], t - t_prev)
-            t_prev = t
-            while gi < len(gn.t) and gn.t[gi] <= t + 1e-9:
-                if gn.t[gi] > b.imu.t[0]:
-                    eng.update(GnssFix(gn.t[gi], gn.lat[gi], gn.lon[gi], gn.h[gi]), t)
-                gi += 1
+        eng.feed(b.imu, b.gnss, b.imu.t[0])
     except FilterDiverged:
         return {'err': np.full(3, np.nan), 'sigma': np.full(3, np.nan), 'speed': np.nan,
                 'R': [np.nan, np.nan], 'flags': -1, 'diverged': True}

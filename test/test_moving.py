@@ -1,10 +1,12 @@
 """Moving-base alignment (seed 000): model batch form, fast mechanization, ASCKF pieces,
 the pipeline on the simulated ship against truth, and the fog_mems car recording."""
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 from conftest import shared_data
-from sins_align_ros.align.moving import GnssFix, MovingBaseAlignment
+from sins_align_ros.align.moving import MovingBaseAlignment
 from sins_align_ros.align.pipeline import AlignmentPipeline, feed_arrays
 from sins_align_ros.filters.adaptive import SageHusa
 from sins_align_ros.filters.asckf import ASCKF
@@ -108,13 +110,7 @@ def test_fine_filter_recovers_a_large_heading_error(heading_err_deg):
     Qc = np.r_[[(5e-6 * 9.8) ** 2] * 2, 0, 0, [(0.0005 * DEG / 60) ** 2] * 3, 0, 0, 0]
     eng = MovingBaseAlignment(la.C_n_nprime(phi0) @ euler_to_dcm(b.imu.euler[0]),
                               b.imu.v_n[0], *b.imu.pos[0], P0, Qc, np.eye(2) * 0.04)
-    gn, gi = b.gnss, 0
-    for k in range(1, len(b.imu.t)):
-        eng.step_imu(b.imu.dtheta[k], b.imu.dv[k], b.imu.t[k] - b.imu.t[k - 1])
-        while gi < len(gn.t) and gn.t[gi] <= b.imu.t[k] + 1e-9:
-            if gn.t[gi] > b.imu.t[0]:
-                eng.update(GnssFix(gn.t[gi], gn.lat[gi], gn.lon[gi], gn.h[gi]), b.imu.t[k])
-            gi += 1
+    eng.feed(b.imu, b.gnss, b.imu.t[0])
     phi = la.misalignment_of(eng.mech.C_b_n, euler_to_dcm(b.imu.euler[-1]))
     assert abs(phi[2]) < 10.0 * ARCMIN, phi / ARCMIN
     assert np.all(np.abs(phi[:2]) < 1.0 * ARCMIN), phi / ARCMIN
@@ -158,16 +154,15 @@ def test_a_diverged_filter_restarts_alignment_and_says_so():
     b = _ship(200.0)
     p = AlignmentPipeline({'fine_filter': 'asckf', **MARINE})
     p.start_clock(0.0)
-    feed_arrays(p, _Slice(b.imu, 0, 6100), b.gnss)
+    feed_arrays(p, _imu_slice(b.imu, 0, 6100), b.gnss)
     assert p.engine is not None
     p._diverged('filter diverged at t=61.000 s (test)')
     assert p.phase == 'waiting' and p.engine is None
-    out = feed_arrays(p, _Slice(b.imu, 6100, 20000), None)
+    out = feed_arrays(p, _imu_slice(b.imu, 6100, 20000), None)
     assert list(dict.fromkeys(out.phase))[:2] == ['coarse', 'fine']
     assert np.all(np.isfinite(out.q[-1]))
     assert any('alignment restarted from coarse' in w for w in p.warnings)
 
 
-class _Slice:
-    def __init__(self, imu, a, b):
-        self.t, self.dtheta, self.dv = imu.t[a:b], imu.dtheta[a:b], imu.dv[a:b]
+def _imu_slice(imu, a, b):
+    return SimpleNamespace(t=imu.t[a:b], dtheta=imu.dtheta[a:b], dv=imu.dv[a:b])

@@ -128,7 +128,6 @@ class MovingBaseAlignment:
         self.n_updates = 0
         self.n_predict_only = 0
         self.last_nis = float('nan')
-        self.last_h = h
 
     # -- IMU rate -------------------------------------------------------------------
     def step_imu(self, dtheta, dv, dt):
@@ -140,11 +139,16 @@ class MovingBaseAlignment:
         self._v_sum += m.v_n * dt
         if self._T >= MAX_PREDICT:
             fx = self._transition()
-            self.kf.Q = np.diag(self.Qc * self._T) if not self.adaptive else self.kf.Q
+            self._set_process_noise()
             self.kf.predict(fx)
             self.n_predict_only += 1
             self._restart_interval()
         return C
+
+    def _set_process_noise(self):
+        """Q of the interval since the last epoch; the adaptive filter keeps its estimate."""
+        if not self.adaptive:
+            self.kf.Q = np.diag(self.Qc * max(self._T, 1e-3))
 
     def _restart_interval(self):
         self._T = 0.0
@@ -192,14 +196,13 @@ class MovingBaseAlignment:
         rows = self.rows[idx]
         hx = batched(lambda X: X[rows])
         kf = self.kf
-        if not self.adaptive:
-            kf.Q = np.diag(self.Qc * max(self._T, 1e-3))
-            if self.use_reported_cov:
-                kf.R = self.R_nominal.copy()
-                if fix.pos_var is not None:
-                    kf.R[0, 0], kf.R[1, 1] = fix.pos_var
-                if self.use_velocity and fix.vel_var is not None:
-                    kf.R[2, 2], kf.R[3, 3] = fix.vel_var
+        self._set_process_noise()
+        if self.use_reported_cov:          # never for the adaptive filter (see __init__)
+            kf.R = self.R_nominal.copy()
+            if fix.pos_var is not None:
+                kf.R[0, 0], kf.R[1, 1] = fix.pos_var
+            if self.use_velocity and fix.vel_var is not None:
+                kf.R[2, 2], kf.R[3, 3] = fix.vel_var
         try:
             upd = kf.step(fx, z, hx, idx)
             self.last_nis = float(upd.y @ np.linalg.solve(upd.Pzz, upd.y))
@@ -239,6 +242,23 @@ class MovingBaseAlignment:
         T[I_EPS, I_EPS] = C_n_np.T
         kf.transform(T)
         kf.x[:7] = 0.0
+
+    def feed(self, imu, gnss, t0):
+        """Run samples 1..N-1 of ``imu`` (``t``, ``dtheta``, ``dv``) from stamp ``t0 = imu.t[0]``.
+
+        GNSS epochs of ``gnss`` (``t``, ``lat``, ``lon``, ``h``; rad, rad, m) after
+        ``t0`` are applied at the first sample at or past their stamp. Raises
+        :class:`FilterDiverged` as :meth:`update` does.
+        """
+        gi, t_prev = 0, t0
+        for k in range(1, len(imu.t)):
+            t = imu.t[k]
+            self.step_imu(imu.dtheta[k], imu.dv[k], t - t_prev)
+            t_prev = t
+            while gi < len(gnss.t) and gnss.t[gi] <= t + 1e-9:
+                if gnss.t[gi] > t0:
+                    self.update(GnssFix(gnss.t[gi], gnss.lat[gi], gnss.lon[gi], gnss.h[gi]), t)
+                gi += 1
 
     # -- output -------------------------------------------------------------------------
     @property

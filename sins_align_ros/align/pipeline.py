@@ -418,8 +418,6 @@ class AlignmentPipeline:
                 self._diverged(str(exc))
                 return
             self.gnss_counts['used'] += 1
-            self.n_updates += 1
-            self.last_nis = self.engine.last_nis
             self._att_cov = None
             self._check_convergence()
 
@@ -690,7 +688,6 @@ class AlignmentPipeline:
             s['innovation_nis'] = self.last_nis
         if self.engine is not None:
             s.update(self.engine.status())
-            s['filter_updates'] = self.n_updates
             s.update({f'gnss_{k}': v for k, v in self.gnss_counts.items()})
         s.update({f'coarse_{k}': v for k, v in self.coarse_info.items()})
         return s

@@ -7,6 +7,7 @@ vE, vN, vU, lat, lon (deg), h`` at 10 Hz. Converted here to the package conventi
 serve as GNSS-like aiding, its attitude as the truth.
 """
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -36,7 +37,7 @@ class FogRecording:
 
     def imu_like(self):
         """Return the IMU part with the attribute names of a simulated chunk (t, dtheta, dv)."""
-        return _Obj(t=self.t, dtheta=self.dtheta, dv=self.dv)
+        return SimpleNamespace(t=self.t, dtheta=self.dtheta, dv=self.dv)
 
     def gnss_like(self, rate_hz=1.0, pos_sigma=0.5, vel_sigma=0.05):
         """Return the reference position/velocity decimated to ``rate_hz`` as GNSS epochs.
@@ -46,9 +47,11 @@ class FogRecording:
         step = max(1, int(round(1.0 / (rate_hz * np.median(np.diff(self.ref_t))))))
         idx = np.arange(step - 1, len(self.ref_t), step)
         n = len(idx)
-        return _Obj(t=self.ref_t[idx], lat=self.ref_pos[idx, 0], lon=self.ref_pos[idx, 1],
-                    h=self.ref_pos[idx, 2], v_n=self.ref_v[idx], fix=np.ones(n, bool),
-                    pos_cov=np.full(3, pos_sigma ** 2), vel_cov=np.full(3, vel_sigma ** 2))
+        return SimpleNamespace(t=self.ref_t[idx], lat=self.ref_pos[idx, 0],
+                               lon=self.ref_pos[idx, 1], h=self.ref_pos[idx, 2],
+                               v_n=self.ref_v[idx], fix=np.ones(n, bool),
+                               pos_cov=np.full(3, pos_sigma ** 2),
+                               vel_cov=np.full(3, vel_sigma ** 2))
 
     def errors(self, out):
         """Return the final attitude error of a pipeline output against the reference, in degrees.
@@ -66,11 +69,6 @@ class FogRecording:
         return {'t': float(out.t[k]), 'roll': d[0] / DEG, 'pitch': -d[1] / DEG,
                 'heading': -d[2] / DEG, 'phi_enu': phi / DEG,
                 'sigma_yaw': float(out.sigma[k, 2] / DEG)}
-
-
-class _Obj:
-    def __init__(self, **kw):
-        self.__dict__.update(kw)
 
 
 def _load(path, ncol):

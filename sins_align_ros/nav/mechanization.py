@@ -209,11 +209,7 @@ class Strapdown:
             en0 = en1 = en2 = 0.0
         zx, zy, zz = en0 * dt, (ie1 + en1) * dt, (ie2 + en2) * dt
         C0 = self.C_b_n.ravel().tolist()
-        sx = C0[0] * ux + C0[1] * uy + C0[2] * uz
-        sy = C0[3] * ux + C0[4] * uy + C0[5] * uz
-        sz = C0[6] * ux + C0[7] * uy + C0[8] * uz
-        sx, sy, sz = (sx - 0.5 * (zy * sz - zz * sy), sy - 0.5 * (zz * sx - zx * sz),
-                      sz - 0.5 * (zx * sy - zy * sx))
+        sx, sy, sz = _nav_specific_force(C0, ux, uy, uz, zx, zy, zz)
         n0, n1, n2 = v0 + sx, v1 + sy, v2 + sz - g * dt
         if opt.coriolis:
             c0, c1, c2 = en0, 2.0 * ie1 + en1, 2.0 * ie2 + en2
@@ -398,11 +394,7 @@ class StationaryStrapdown(Strapdown):
         wx, wy, wz = self._w_ie.tolist()
         zx, zy, zz = wx * dt, wy * dt, wz * dt
         C0 = self.C_b_n.ravel().tolist()
-        sx = C0[0] * ux + C0[1] * uy + C0[2] * uz
-        sy = C0[3] * ux + C0[4] * uy + C0[5] * uz
-        sz = C0[6] * ux + C0[7] * uy + C0[8] * uz
-        sx, sy, sz = (sx - 0.5 * (zy * sz - zz * sy), sy - 0.5 * (zz * sx - zx * sz),
-                      sz - 0.5 * (zx * sy - zy * sx))
+        sx, sy, sz = _nav_specific_force(C0, ux, uy, uz, zx, zy, zz)
         g = self._g_n[2]
         v0, v1, v2 = self.v_n.tolist()
         n0, n1, n2 = v0 + sx, v1 + sy, v2 + sz + g * dt
@@ -439,6 +431,19 @@ def _coning_sculling(dtheta, dv, dtheta_prev, dv_prev):
     uz = (bz + 0.5 * rz + (ax * ry - ay * rx) / 6.0
           + ((px * by - py * bx) + (qx * ay - qy * ax)) / 12.0)
     return ax, ay, az, bx, by, bz, fx, fy, fz, ux, uy, uz
+
+
+def _nav_specific_force(C0, ux, uy, uz, zx, zy, zz):
+    """Scalar ``(I - [zeta x]/2) C_b_n dv_b``: the specific-force increment in ENU.
+
+    ``C0`` is ``C_b_n`` as a row-major 9-sequence, ``u`` the compensated body
+    increment, ``z`` the nav-frame rotation ``zeta`` of the interval.
+    """
+    sx = C0[0] * ux + C0[1] * uy + C0[2] * uz
+    sy = C0[3] * ux + C0[4] * uy + C0[5] * uz
+    sz = C0[6] * ux + C0[7] * uy + C0[8] * uz
+    return (sx - 0.5 * (zy * sz - zz * sy), sy - 0.5 * (zz * sx - zx * sz),
+            sz - 0.5 * (zx * sy - zy * sx))
 
 
 def _rodrigues9(x, y, z):
