@@ -195,3 +195,52 @@ def test_asckf_fades_and_adapts_when_the_noise_is_wrong():
     assert max(lam_bad) > 1.0
     assert f_bad.noise.R[0, 0] > 3.0 * R[0, 0]               # learned the larger noise
     assert np.all(np.isfinite(f_bad.x)) and np.all(np.linalg.eigvalsh(f_bad.P) > 0)
+
+
+def test_lag1_correlation_separates_white_from_persistent_innovations():
+    from sins_align_ros.filters.asckf import lag1_correlation
+    rng = np.random.default_rng(11)
+    white = rng.standard_normal((2000, 2))
+    r_white = [lag1_correlation(white[k:k + 11]) for k in range(0, 2000, 11)]
+    # spread about 1/sqrt(L m) = 0.22 for L = 10, m = 2, whatever the scale
+    assert abs(np.mean(r_white)) < 0.05 and 0.15 < np.std(r_white) < 0.3
+    assert lag1_correlation(100.0 * white[:11]) == pytest.approx(lag1_correlation(white[:11]))
+    drift = 0.2 * white[:11] + np.array([1.0, -0.5])          # a bias keeps its sign
+    assert lag1_correlation(drift) > 0.8
+    assert lag1_correlation(np.zeros((11, 2))) == 0.0
+
+
+def test_whiteness_gate_leaves_a_noise_step_to_r_and_fades_a_state_jump():
+    """Fading gated on the innovations' lag-1 correlation (seed 000 sec. 2.1 condition 2).
+
+    A 10x step of the measurement noise gives white innovations: no fading, R learns it.
+    A jump of the true heading (a state error the model does not know) gives
+    innovations of one sign: the fading fires; a variance cap keeps P bounded.
+    """
+    from sins_align_ros.filters.asckf import ASCKF
+    Q = np.diag([0.01, 0.01, 0.02, 0.005]) ** 2
+    R = np.diag([0.1, 0.01]) ** 2
+
+    def run(noise_scale, jump, seed, fading=True):
+        rng = np.random.default_rng(seed)
+        x = np.array([10.0, 5.0, 2.0, 0.3])
+        f = ASCKF(X0, P0, Q, R, fading=fading, adaptive=True, adapt_q=False,
+                  whiteness=(10, 0.5), var_max=np.diag(P0))
+        faded = []
+        for k in range(300):
+            x = fx(x) + rng.normal(0, np.sqrt(np.diag(Q)))
+            if k == 150:
+                x[3] += jump
+            scale = noise_scale if 100 <= k < 200 else 1.0
+            f.step(fx, hx(x) + scale * rng.normal(0, np.sqrt(np.diag(R))), hx)
+            faded.append(f.faded)
+            assert np.all(np.diag(f.P) <= np.diag(P0) * (1 + 1e-9) + np.diag(Q) * 10)
+        return f, x, np.array(faded)
+
+    f, x, faded = run(10.0, 0.0, 21)
+    assert faded[100:200].sum() <= 3
+    assert f.noise.R[0, 0] > 3.0 * R[0, 0] or faded.sum() == 0
+    f, x, faded = run(1.0, 1.0, 22)
+    assert not faded[100:150].any() and faded[150:200].any()
+    g, xg, _ = run(1.0, 1.0, 22, fading=False)
+    assert abs(f.x[3] - x[3]) < 0.5 * abs(g.x[3] - xg[3]), (f.x[3] - x[3], g.x[3] - xg[3])

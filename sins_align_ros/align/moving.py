@@ -35,8 +35,10 @@ I_V, I_P, I_PHI, I_EPS = slice(0, 2), slice(2, 4), slice(4, 7), slice(7, 10)
 #: the gyro drift does not (fading a random constant with a 1e-16 variance made every
 #: run diverge in bench/moving_base.py: the factors compound over the V_k memory)
 ALPHA = np.r_[np.ones(7), np.zeros(3)]
-#: chi-square 99% points for 2 and 4 measurements: fading only on abnormal innovations
-FADING_GATE = {2: 9.21, 4: 13.28}
+#: fading only while the innovations of the last 10 epochs are too large for their
+#: covariance (99%) and keep their sign (lag-1 correlation above 0.5, about 2.2 sigma
+#: for white 2-vectors): see ASCKF ``whiteness``
+WHITENESS = (10, 0.5)
 #: the longest interval the error model is propagated without a measurement, s
 MAX_PREDICT = 2.0
 
@@ -87,7 +89,7 @@ class MovingBaseAlignment:
         Which of seed 000's filters (module docstring).
     use_reported_cov : bool
         Take R from each fix's reported variances (non-adaptive filters only).
-    alpha, rho, beta, b, gate, lambda_max, adapt_q, r_ceiling
+    alpha, rho, beta, b, gate, lambda_max, adapt_q, r_ceiling, fading_gate, whiteness
         Strong-tracking and Sage-Husa settings (:class:`~sins_align_ros.filters.asckf.ASCKF`).
         Defaults differ from the seed in documented ways: ``alpha`` (:data:`ALPHA`)
         keeps the drift states out of the fading; ``adapt_q=False`` estimates R
@@ -96,17 +98,28 @@ class MovingBaseAlignment:
         eq. 20 gate R is only ever updated from large innovations and ran away to
         1e8 times the truth after a 3 deg heading error met a 0.1 g acceleration);
         ``r_ceiling`` bounds R at 1e4 times its initial value; the fading applies
-        only when the innovation fails a 99% chi-square test (:data:`FADING_GATE`;
-        with filter Q nine times the truth the ungated factors compounded to 9 deg
-        of tilt sigma and a singular innovation covariance); and R is learnt only
+        only while the innovations of the last epochs are too large *and* keep
+        their sign (:data:`WHITENESS`; the seed's V_k is mostly the last two
+        innovations, so ungated, chance fluctuations faded the covariance again
+        and again, and with filter Q nine times the truth compounded to 9 deg of
+        tilt sigma and a singular innovation covariance; a per-epoch chi-square
+        gate alone still faded the heading through the 10x GNSS noise window of
+        the wrong-noise benchmark until the filter diverged: that noise is large
+        but white, and goes to R); R is learnt only
         from epochs where it dominates the innovation covariance (a 30 deg heading
         error met by an acceleration otherwise drove R to 5000 times the truth).
+    cap_at_p0 : bool
+        The fading never makes a variance larger than its P0 (not in the seed):
+        a weakly observable heading faded epoch after epoch otherwise grows
+        without bound. With an over-confident P0 this also keeps the fading from
+        rescuing it; start from an honest P0 (the pipeline's coarse stage does).
     """
 
     def __init__(self, C_b_n, v_n, lat, lon, h, P0, Qc, R, use_velocity=False,
                  square_root=True, fading=True, adaptive=True, use_reported_cov=False,
                  alpha=ALPHA, rho=0.95, beta=3.0, b=0.97, gate=False, lambda_max=np.inf,
-                 adapt_q=False, r_ceiling=1e4):
+                 adapt_q=False, r_ceiling=1e4, fading_gate=None, whiteness=WHITENESS,
+                 cap_at_p0=True):
         self.mech = Strapdown(C_b_n, v_n, lat, lon, h, MechanizationOptions())
         self.Qc = np.asarray(Qc, dtype=float)
         self.use_velocity = bool(use_velocity)
@@ -116,7 +129,9 @@ class MovingBaseAlignment:
             self.kf = ASCKF(np.zeros(la.N_STATES), P0, np.diag(self.Qc), R, fading=fading,
                             adaptive=adaptive, alpha=alpha, rho=rho, beta=beta, b=b, gate=gate,
                             lambda_max=lambda_max, adapt_q=adapt_q, r_ceiling=r_ceiling,
-                            r_when_identifiable=True, fading_gate=FADING_GATE)
+                            r_when_identifiable=True, fading_gate=fading_gate,
+                            whiteness=whiteness,
+                            var_max=np.diag(P0).copy() if cap_at_p0 else None)
         else:
             self.kf = CKF(np.zeros(la.N_STATES), P0, np.diag(self.Qc), R)
         self.adaptive = bool(square_root and adaptive)
@@ -280,4 +295,5 @@ class MovingBaseAlignment:
              'gyro_drift_dph': [float(v) for v in kf.x[I_EPS] / (math.pi / 180.0 / 3600.0)]}
         if getattr(kf, 'lam', None) is not None:
             s['fading_factors'] = [float(v) for v in kf.lam]
+            s['fading_epochs'] = int(kf.n_faded)
         return s

@@ -4,7 +4,7 @@
                       [--report OUT.png]
 
 INPUT is a rosbag2 (folder, .mcap or .db3) with ``imu/data_raw`` (and optionally
-``gnss/fix``, ``sim/truth``), or a PSINS ``.imu`` log. Parameters are the
+``gnss/fix``, ``gnss/vel``, ``sim/truth``), or a PSINS ``.imu`` log. Parameters are the
 alignment node's (YAML in the ROS parameter-file layout or flat; ``--set``
 overrides). Errors end with one line on stderr and a non-zero exit code; what
 was computed before a fault in the input is still written.
@@ -41,6 +41,9 @@ def _parser():
                     help='use only the first SECONDS of IMU data')
     ap.add_argument('--imu-topic', default='imu/data_raw')
     ap.add_argument('--fix-topic', default='gnss/fix')
+    ap.add_argument('--vel-topic', default='gnss/vel',
+                    help='geometry_msgs/TwistWithCovarianceStamped ENU velocity (optional '
+                         'topic; empty string to ignore it)')
     ap.add_argument('--quiet', action='store_true')
     return ap
 
@@ -93,7 +96,7 @@ def replay_bag(path, values, args, log):
 
     try:
         t_end = None
-        for ev in iter_bag(path, args.imu_topic, args.fix_topic):
+        for ev in iter_bag(path, args.imu_topic, args.fix_topic, vel_topic=args.vel_topic):
             if t_end is None and args.duration is not None:
                 t_end = ev.t + args.duration
             if t_end is not None and ev.t > t_end + 1e-9:
@@ -112,10 +115,15 @@ def replay_bag(path, values, args, log):
                         pipe.reset()
                     pipe.start_clock(ev.t)
             elif ev.kind == 'fix':
-                status, lat, lon, h = ev.data
+                status, lat, lon, h, pos_var = ev.data
                 if status >= 0 and np.isfinite([lat, lon, h]).all():
                     flush()
-                    pipe.position_fix(ev.t, lat, lon, h)
+                    pipe.position_fix(ev.t, lat, lon, h, pos_var=pos_var)
+            elif ev.kind == 'vel':
+                v_n, vel_var = ev.data
+                if np.isfinite(v_n).all():
+                    flush()
+                    pipe.velocity_fix(ev.t, v_n, vel_var=vel_var)
             else:
                 truth.append((ev.t, ev.data[0]))
         flush()

@@ -74,8 +74,14 @@ class SageHusa:
     r_ceiling : float
         Largest eigenvalue of R, as a multiple of the initial mean variance.
     r_when_identifiable : bool
-        Estimate R only from epochs whose innovation covariance is dominated by R
-        (``tr(Pzz) <= 2 tr(R)``), not in a transient of the state (not in the seed).
+        Estimate R (its diagonal) only at epochs whose predicted innovation
+        covariance is dominated by R (``tr(Pzz) <= 2 tr(R)``) and on the rows where
+        it is (``Pzz_ii <= 2 R_ii``), not in a transient of the state, and from
+        innovations winsorised at ``clip`` times their predicted variance, so that
+        one outlier moves R by a bounded factor (not in the seed).
+    clip : float
+        Winsorising bound of ``y_i^2 / Pzz_ii`` (default the 99.9% point of
+        chi-square with one degree of freedom).
     adapt_q : bool
         Estimate Q as well (eq. 39). Q and R are not separately identifiable from
         the innovations of a weakly observable state; adapting both lets Q absorb
@@ -83,10 +89,11 @@ class SageHusa:
     """
 
     def __init__(self, Q0, R0, b=0.97, gate=True, adapt_q=True, r_ceiling=np.inf,
-                 r_when_identifiable=False):
+                 r_when_identifiable=False, clip=10.83):
         self.gate = bool(gate)
         self.r_when_identifiable = bool(r_when_identifiable)
         self.adapt_q = bool(adapt_q)
+        self.clip = float(clip)
         self.Q = np.array(Q0, dtype=float)
         self.R = np.array(R0, dtype=float)
         #: eigenvalue floor that keeps R positive definite (1e-3 of the initial mean variance)
@@ -95,6 +102,9 @@ class SageHusa:
         #: seed): a large model error (heading error in an acceleration) otherwise feeds
         #: a runaway, R up -> measurements ignored -> larger innovations -> R up
         self.r_ceiling = float(r_ceiling) * float(np.trace(self.R)) / len(self.R)
+        #: per-row bounds of the diagonal estimate (same factors, each row's own start)
+        self._r_lo = 1e-3 * np.diag(self.R).copy()
+        self._r_hi = float(r_ceiling) * np.diag(self.R).copy()
         self.b = float(b)
         self.k = 0
         self.divergence_flags = 0
@@ -121,13 +131,26 @@ class SageHusa:
             self.divergence_flags += 1
         idx = np.arange(len(self.R)) if idx is None else np.asarray(idx)
         blk = np.ix_(idx, idx)
-        if self.r_when_identifiable and np.trace(upd.Pzz) > 2.0 * np.trace(self.R[blk]):
-            # the predicted state uncertainty dominates the innovation: a large
-            # innovation says more about the state than about the receiver noise
-            return self.Q, self.R
+        if self.r_when_identifiable:
+            return self.Q, self._update_identifiable_rows(upd, idx, d)
         R_new = (1.0 - d) * self.R[blk] + d * (np.outer(y, y) - eta @ eta.T)  # eq. 39
         # keep R positive definite: the subtraction may remove too much
         w, U = np.linalg.eigh(0.5 * (R_new + R_new.T))
         self.R = self.R.copy()
         self.R[blk] = (U * np.clip(w, self.r_floor, self.r_ceiling)) @ U.T
         return self.Q, self.R
+
+    def _update_identifiable_rows(self, upd, idx, d):
+        """Diagonal eq. 39 on the rows where R dominates ``Pzz``, winsorised innovations."""
+        pzz = np.diag(upd.Pzz)
+        hph = np.sum(upd.eta * upd.eta, axis=1)                    # diag(eta eta^T)
+        r = np.diag(self.R)[idx]
+        ok = hph <= r
+        if not np.any(ok) or np.sum(hph) > np.sum(r):
+            return self.R
+        y2 = np.minimum(upd.y ** 2, self.clip * pzz)
+        r_new = (1.0 - d) * r + d * (y2 - hph)
+        rows = idx[ok]
+        self.R = self.R.copy()
+        self.R[rows, rows] = np.clip(r_new[ok], self._r_lo[rows], self._r_hi[rows])
+        return self.R

@@ -10,11 +10,26 @@ can be compared one step at a time:
 
 Generic: ``fx(x)`` and ``hx(x)`` act on one state vector.
 """
+from collections import deque
+
 import numpy as np
+from scipy.stats import chi2
 
 from .adaptive import SageHusa, StrongTracking
 from .cubature import (chol_lower, ckf_predict, ckf_update, sqrt_psd, srckf_predict,
                        srckf_update, tria)
+
+
+def lag1_correlation(w):
+    """Lag-1 correlation coefficient of a sequence of innovation vectors ``w`` (L+1, m).
+
+    ``sum_k w_k . w_{k-1} / sum_k |w_k|^2`` over the sequence: about 0 (spread
+    ``1/sqrt(L m)``) for white innovations whatever their size, near 1 for
+    innovations that keep their sign.
+    """
+    W = np.asarray(w)
+    den = float(np.sum(W * W))
+    return float(np.sum(W[1:] * W[:-1])) / den if den > 0 else 0.0
 
 
 class ASCKF:
@@ -42,13 +57,28 @@ class ASCKF:
         un-faded innovation NIS exceeds the threshold for ``m`` measurements (not in
         the seed; V_k of eq. 10 is mostly the last two innovations, so without a
         gate chance fluctuations fade the covariance again and again).
+    whiteness : tuple (L, r_min) or None
+        If given, the fading factors apply only while the normalised innovations
+        ``w`` of the last ``L`` epochs are both too large (``sum |w|^2`` above the
+        99% point of chi-square with ``L m`` degrees of freedom) and correlated
+        from one epoch to the next (lag-1 correlation coefficient above ``r_min``):
+        seed 000's own condition 2 (sec. 2.1, residuals orthogonal in time) used as
+        the test. A state error the model does not follow shows as innovations of
+        a persistent sign; a jump of the measurement noise leaves them white, and
+        is left to the Sage-Husa R. Conversely R is learnt only from white
+        innovations (a correlated part is not measurement noise).
+    var_max : array_like (n,) or None
+        Largest variance the fading may give each state (not in the seed; the
+        initial variances are a natural choice): a weakly observable state faded
+        epoch after epoch otherwise grows without bound.
     gate, adapt_q, r_ceiling, r_when_identifiable
         Passed to :class:`~sins_align_ros.filters.adaptive.SageHusa`.
     """
 
     def __init__(self, x0, P0, Q, R, fading=True, adaptive=True, alpha=None, rho=0.95,
                  beta=3.0, b=0.97, gate=True, adapt_q=True, lambda_max=np.inf,
-                 r_ceiling=np.inf, r_when_identifiable=False, fading_gate=None):
+                 r_ceiling=np.inf, r_when_identifiable=False, fading_gate=None,
+                 whiteness=None, var_max=None):
         n = len(x0)
         self.x = np.array(x0, dtype=float)
         self.S = chol_lower(np.asarray(P0, dtype=float))
@@ -59,6 +89,15 @@ class ASCKF:
         self._alpha = np.ones(n) if alpha is None else np.asarray(alpha, dtype=float)
         self._rho, self._beta, self._lambda_max = rho, beta, lambda_max
         self.fading_gate = fading_gate
+        self.whiteness = whiteness
+        self.var_max = None if var_max is None else np.asarray(var_max, dtype=float)
+        #: normalised innovations of the recent epochs, per measurement subset
+        self._w_hist = {}
+        #: epochs at which the fading factors were applied (some factor > 1)
+        self.n_faded = 0
+        self.faded = False
+        #: False while the whiteness test finds the innovations correlated in time
+        self.white = True
         #: one strong-tracking state per measurement subset (its V_k has that dimension)
         self._tracking = {}
         self.noise = SageHusa(self.Q, self.R, b=b, gate=gate, adapt_q=adapt_q,
@@ -85,6 +124,39 @@ class ASCKF:
         """How often the divergence test of eq. 20 fired."""
         return self.noise.divergence_flags
 
+    def _faded_sqrt(self, xp, S_l, chi_star, SQ, z, hx, SR, idx):
+        """Square root of the faded prediction covariance (eq. 7-17, 35); sets ``self.lam``."""
+        _, _, probe = srckf_update(xp, S_l, z, hx, SR)                           # (l) quantities
+        key = tuple(idx.tolist())
+        tracking = self._tracking.get(key)
+        if tracking is None:
+            tracking = self._tracking[key] = StrongTracking(
+                self._alpha, self._rho, self._beta, self._lambda_max)
+        R = self.R[np.ix_(idx, idx)]
+        P_l = S_l @ S_l.T
+        self.lam = tracking.factors(probe.y, P_l, probe.Pxz, self.Q, R)
+        apply = True
+        if self.fading_gate is not None:
+            nis = float(probe.y @ np.linalg.solve(probe.Pzz, probe.y))
+            apply = nis > self.fading_gate[len(idx)]
+        if self.whiteness is not None:
+            L, r_min = self.whiteness
+            hist = self._w_hist.setdefault(key, deque(maxlen=int(L) + 1))
+            hist.append(np.linalg.solve(chol_lower(probe.Pzz), probe.y))
+            W = np.asarray(hist)[1:]
+            self.white = not (len(hist) > L and lag1_correlation(hist) > r_min)
+            apply = (apply and not self.white
+                     and float(np.sum(W * W)) > chi2.ppf(0.99, W.size))
+        if not apply:
+            self.lam = np.ones_like(self.lam)
+        if self.var_max is not None:
+            cap = np.maximum(self.var_max / np.clip(np.diag(P_l), 1e-300, None), 1.0)
+            self.lam = np.minimum(self.lam, cap)
+        self.faded = bool(np.any(self.lam > 1.0))
+        self.n_faded += self.faded
+        lam_sqrt = StrongTracking.sqrt_factors(self.lam)                         # eq. 17
+        return tria(np.hstack([lam_sqrt[:, None] * chi_star, SQ]))                # eq. 35
+
     def predict(self, fx):
         """Time update only (no measurement this epoch): eq. 23-27 without fading."""
         self.x, self.S, _ = srckf_predict(self.x, self.S, fx, sqrt_psd(self.Q))
@@ -99,25 +171,13 @@ class ASCKF:
         idx = np.arange(len(self.R)) if idx is None else np.asarray(idx)
         SQ, SR = sqrt_psd(self.Q), sqrt_psd(self.R[np.ix_(idx, idx)])
         xp, S_l, chi_star = srckf_predict(self.x, self.S, fx, SQ)               # eq. 23-27
+        self.faded, self.white = False, True
         if self.fading:
-            _, _, probe = srckf_update(xp, S_l, z, hx, SR)                       # (l) quantities
-            key = tuple(idx.tolist())
-            tracking = self._tracking.get(key)
-            if tracking is None:
-                tracking = self._tracking[key] = StrongTracking(
-                    self._alpha, self._rho, self._beta, self._lambda_max)
-            self.lam = tracking.factors(probe.y, S_l @ S_l.T, probe.Pxz, self.Q,
-                                        self.R[np.ix_(idx, idx)])
-            if self.fading_gate is not None:
-                nis = float(probe.y @ np.linalg.solve(probe.Pzz, probe.y))
-                if nis <= self.fading_gate[len(idx)]:
-                    self.lam = np.ones_like(self.lam)
-            lam_sqrt = StrongTracking.sqrt_factors(self.lam)                     # eq. 17
-            S_p = tria(np.hstack([lam_sqrt[:, None] * chi_star, SQ]))             # eq. 35
+            S_p = self._faded_sqrt(xp, S_l, chi_star, SQ, z, hx, SR, idx)
         else:
             S_p = S_l
         self.x, self.S, upd = srckf_update(xp, S_p, z, hx, SR)                   # eq. 28-38
-        if self.adaptive:
+        if self.adaptive and self.white:
             self.Q, self.R = self.noise.update(upd, idx)                         # eq. 39, 20
         self.last = upd
         return upd

@@ -24,7 +24,13 @@ class BagError(ValueError):
 
 @dataclass
 class BagEvent:
-    """One message in stamp order: ``kind`` is 'imu', 'fix' or 'truth'; ``t`` its stamp (s)."""
+    """One message in stamp order: ``kind`` is 'imu', 'fix', 'vel' or 'truth'; ``t`` its stamp (s).
+
+    ``data``: imu ``(w, f, frame_id)``; fix ``(status, lat_deg, lon_deg, h, pos_var)``
+    with ``pos_var`` (east, north) m^2 or None when the receiver gives no covariance;
+    vel ``(v_enu, vel_var)`` with ``vel_var`` (east, north) (m/s)^2 or None;
+    truth ``(q_xyzw,)``.
+    """
 
     kind: str
     t: float
@@ -54,7 +60,14 @@ def _match(connections, name, msgtype, required):
     return found
 
 
-def iter_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='sim/truth'):
+def _variances(c, i, j):
+    """Return ``(c[i], c[j])`` when both are finite and positive, else None."""
+    v = (float(c[i]), float(c[j]))
+    return v if np.isfinite(v).all() and min(v) > 0 else None
+
+
+def iter_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='sim/truth',
+             vel_topic='gnss/vel'):
     """Yield :class:`BagEvent` in recording order from a rosbag2 folder or .mcap file.
 
     Raises :class:`BagError` for a missing IMU topic, a wrong message type or an
@@ -76,9 +89,11 @@ def iter_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='
         imu = _match(reader.connections, imu_topic, IMU_TYPE, True)
         fix = _match(reader.connections, fix_topic, FIX_TYPE, False)
         truth = _match(reader.connections, truth_topic, ODOM_TYPE, False)
-        kinds = {c.id: k for k, cs in (('imu', imu), ('fix', fix), ('truth', truth)) for c in cs}
+        vel = _match(reader.connections, vel_topic, VEL_TYPE, False) if vel_topic else []
+        kinds = {c.id: k for k, cs in (('imu', imu), ('fix', fix), ('truth', truth),
+                                       ('vel', vel)) for c in cs}
         try:
-            for conn, _, raw in reader.messages(connections=imu + fix + truth):
+            for conn, _, raw in reader.messages(connections=imu + fix + truth + vel):
                 msg = reader.deserialize(raw, conn.msgtype)
                 kind = kinds[conn.id]
                 if kind == 'imu':
@@ -86,8 +101,15 @@ def iter_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='
                     yield BagEvent('imu', _stamp(msg.header), (
                         (w.x, w.y, w.z), (a.x, a.y, a.z), msg.header.frame_id))
                 elif kind == 'fix':
+                    pos_var = (None if msg.position_covariance_type == 0
+                               else _variances(msg.position_covariance, 0, 4))
                     yield BagEvent('fix', _stamp(msg.header), (
-                        int(msg.status.status), msg.latitude, msg.longitude, msg.altitude))
+                        int(msg.status.status), msg.latitude, msg.longitude, msg.altitude,
+                        pos_var))
+                elif kind == 'vel':
+                    v = msg.twist.twist.linear
+                    yield BagEvent('vel', _stamp(msg.header), (
+                        (v.x, v.y, v.z), _variances(msg.twist.covariance, 0, 7)))
                 else:
                     q = msg.pose.pose.orientation
                     yield BagEvent('truth', _stamp(msg.header), ((q.x, q.y, q.z, q.w),))
@@ -103,7 +125,7 @@ def write_scenario_bag(path, sc, seed=0, duration=None, start_time=1_700_000_000
                        truth_rate_hz=10.0):
     """Record a simulated scenario into a rosbag2 (sqlite3) like simulator_node publishes it.
 
-    Topics: imu/data_raw, gnss/fix, sim/truth (relative names, no namespace).
+    Topics: imu/data_raw, gnss/fix, gnss/vel, sim/truth (relative names, no namespace).
     Returns the path.
     """
     from rosbags.rosbag2 import Writer
@@ -128,6 +150,7 @@ def write_scenario_bag(path, sc, seed=0, duration=None, start_time=1_700_000_000
         c_imu = w.add_connection('/imu/data_raw', IMU_TYPE, typestore=ts)
         c_fix = w.add_connection('/gnss/fix', FIX_TYPE, typestore=ts)
         c_truth = w.add_connection('/sim/truth', ODOM_TYPE, typestore=ts)
+        c_vel = w.add_connection('/gnss/vel', VEL_TYPE, typestore=ts)
         k = 0
         while k < n_total:
             n = min(int(round(1.0 / st.dt)), n_total - k)
@@ -172,6 +195,17 @@ def write_scenario_bag(path, sc, seed=0, duration=None, start_time=1_700_000_000
                                      altitude=float(g.h[j]), position_covariance=cov,
                                      position_covariance_type=2)
                     events.append((g.t[j], 2, c_fix, ts.serialize_cdr(fx, FIX_TYPE)))
+                    if g.fix[j]:
+                        tcov = np.zeros(36)
+                        tcov[[0, 7, 14]] = g.vel_cov
+                        tcov[[21, 28, 35]] = 1e6
+                        vm = T[VEL_TYPE](
+                            header=header(g.t[j], 'gnss_link'),
+                            twist=T['geometry_msgs/msg/TwistWithCovariance'](
+                                twist=T['geometry_msgs/msg/Twist'](linear=V3(*g.v_n[j]),
+                                                                   angular=V3(0.0, 0.0, 0.0)),
+                                covariance=tcov))
+                        events.append((g.t[j], 3, c_vel, ts.serialize_cdr(vm, VEL_TYPE)))
             for t, _, conn, data in sorted(events, key=lambda e: (e[0], e[1])):
                 w.write(conn, int(round((start_time + t) * 1e9)), data)
             k += n
