@@ -259,8 +259,9 @@ class AlignmentPipeline:
                 out = _unknown(t[i:j], COARSE)
                 if self._coarse_T >= self.cfg['coarse_duration'] - 1e-9:
                     self._finish_coarse()
-                    out.phase[-1] = FINE
-                    self._fill_last(out)
+                    if self.phase == FINE:            # else degenerate: coarse again
+                        out.phase[-1] = FINE
+                        self._fill_last(out)
                 outs.append(out)
                 i = j
                 continue
@@ -372,7 +373,17 @@ class AlignmentPipeline:
             self.coarse_info['method'] = 'inertial_frame'
             self._finish_coarse_moving(tt, dth, dvv, dts, moving, T)
             return
+        if not self._coarse_ok(C):
+            return
         self._init_fine(C, self._coarse_sigma(T, lat, moving))
+
+    def _coarse_ok(self, C):
+        """False (and coarse alignment restarted, with the reason) for a non-finite result."""
+        if np.all(np.isfinite(C)):
+            return True
+        self._diverged('coarse alignment degenerate: no usable gravity or Earth-rate '
+                       'direction in the window (gyro or accelerometer output near zero?)')
+        return False
 
     # -- moving base ----------------------------------------------------------------
     def _process_moving(self, t, dtheta, dv):
@@ -482,6 +493,8 @@ class AlignmentPipeline:
         V, v_sig, v_src = self._gnss_velocity(tt)
         dv_n = None if V is None else V - V[0]
         C = coarse.inertial_frame(dth, dvv, dts, lat, h, dv_n=dv_n)
+        if not self._coarse_ok(C):
+            return
         sigma = self._coarse_sigma(T, lat, moving, cap=90.0 * DEG)
         if V is None and moving:
             sigma[:2] *= 3.0
