@@ -378,7 +378,7 @@ class AlignmentPipeline:
         self._init_fine(C, self._coarse_sigma(T, lat, moving))
 
     def _coarse_ok(self, C):
-        """False (and coarse alignment restarted, with the reason) for a non-finite result."""
+        """Check a coarse result; if non-finite, restart coarse alignment (with the reason)."""
         if np.all(np.isfinite(C)):
             return True
         self._diverged('coarse alignment degenerate: no usable gravity or Earth-rate '
