@@ -179,3 +179,15 @@ def test_a_diverged_filter_restarts_alignment_and_says_so():
 
 def _imu_slice(imu, a, b):
     return SimpleNamespace(t=imu.t[a:b], dtheta=imu.dtheta[a:b], dv=imu.dv[a:b])
+
+
+def test_reported_gnss_variances_are_used_only_when_finite_and_positive():
+    p = AlignmentPipeline({'fine_filter': 'asckf', **MARINE})
+    for bad in [(0.0, 0.04), (np.nan, 0.04), (-1.0, 0.04), (np.inf, 0.04), None]:
+        p.position_fix(1.0, 45.0, 126.0, 0.0, pos_var=bad)
+        p.velocity_fix(1.0, [1.0, 0.0, 0.0], vel_var=bad)
+        assert p._fixes[-1][4] is None and p._vels[-1][2] is None
+    p.position_fix(2.0, 45.0, 126.0, 0.0, pos_var=(0.04, 0.09))
+    p.velocity_fix(2.0, [1.0, 0.0, 0.0], vel_var=(0.01, 0.02))
+    np.testing.assert_array_equal(p._fixes[-1][4], [0.04, 0.09])
+    np.testing.assert_array_equal(p._vels[-1][2], [0.01, 0.02])

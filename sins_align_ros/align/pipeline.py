@@ -187,6 +187,9 @@ class AlignmentPipeline:
     def position_fix(self, t, lat_deg, lon_deg, h, pos_var=None):
         """Record a valid GNSS position (deg, deg, m); ``pos_var`` (2,) east/north m^2 or None.
 
+        ``pos_var`` is taken as the receiver reports it; unless both values are
+        finite and positive it is ignored (the configured sigma is used).
+
         Stationary models: the position is fixed when coarse alignment ends (seed
         002 Table 1), from the latest fix. Moving-base models: every fix is also a
         measurement, applied when the IMU stream passes its stamp.
@@ -195,8 +198,7 @@ class AlignmentPipeline:
         self.last_fix = (t, float(lat_deg), float(lon_deg), float(h))
         if not self.moving:
             return
-        pv = None if pos_var is None else np.asarray(pos_var, dtype=float)[:2]
-        rec = (t, lat_deg * DEG, lon_deg * DEG, float(h), pv)
+        rec = (t, lat_deg * DEG, lon_deg * DEG, float(h), _reported_variances(pos_var))
         self._fixes.append(rec)
         while self._fixes and self._fixes[0][0] < t - _GNSS_KEEP:
             self._fixes.popleft()
@@ -204,12 +206,15 @@ class AlignmentPipeline:
             self._pending.append(rec)
 
     def velocity_fix(self, t, v_n, vel_var=None):
-        """Record a GNSS ENU velocity (m/s, (3,)); ``vel_var`` (2,) east/north (m/s)^2 or None."""
+        """Record a GNSS ENU velocity (m/s, (3,)); ``vel_var`` (2,) east/north (m/s)^2 or None.
+
+        ``vel_var`` is checked as ``pos_var`` of :meth:`position_fix`.
+        """
         if not self.moving:
             return
         t = float(t)
-        vv = None if vel_var is None else np.asarray(vel_var, dtype=float)[:2]
-        self._vels.append((t, np.asarray(v_n, dtype=float).copy(), vv))
+        self._vels.append((t, np.asarray(v_n, dtype=float).copy(),
+                           _reported_variances(vel_var)))
         while self._vels and self._vels[0][0] < t - _GNSS_KEEP:
             self._vels.popleft()
 
@@ -704,6 +709,14 @@ class AlignmentPipeline:
             s.update({f'gnss_{k}': v for k, v in self.gnss_counts.items()})
         s.update({f'coarse_{k}': v for k, v in self.coarse_info.items()})
         return s
+
+
+def _reported_variances(var):
+    """East/north variances (2,) as reported, or None unless both are finite and positive."""
+    if var is None:
+        return None
+    v = np.asarray(var, dtype=float)[:2]
+    return v if len(v) == 2 and np.all(np.isfinite(v)) and np.all(v > 0) else None
 
 
 def feed_arrays(p, imu, gnss, use_velocity=True, block=100):

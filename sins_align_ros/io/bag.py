@@ -27,8 +27,9 @@ class BagEvent:
     """One message in stamp order: ``kind`` is 'imu', 'fix', 'vel' or 'truth'; ``t`` its stamp (s).
 
     ``data``: imu ``(w, f, frame_id)``; fix ``(status, lat_deg, lon_deg, h, pos_var)``
-    with ``pos_var`` (east, north) m^2 or None when the receiver gives no covariance;
-    vel ``(v_enu, vel_var)`` with ``vel_var`` (east, north) (m/s)^2 or None;
+    with ``pos_var`` (east, north) m^2 as reported, or None when the covariance type
+    is unknown; vel ``(v_enu, vel_var)`` with ``vel_var`` (east, north) (m/s)^2 as
+    reported (the pipeline ignores variances that are not finite and positive);
     truth ``(q_xyzw,)``.
     """
 
@@ -58,12 +59,6 @@ def _match(connections, name, msgtype, required):
         if c.msgtype != msgtype:
             raise BagError(f'topic {c.topic!r} has type {c.msgtype}, expected {msgtype}')
     return found
-
-
-def _variances(c, i, j):
-    """Return ``(c[i], c[j])`` when both are finite and positive, else None."""
-    v = (float(c[i]), float(c[j]))
-    return v if np.isfinite(v).all() and min(v) > 0 else None
 
 
 def iter_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='sim/truth',
@@ -101,15 +96,16 @@ def iter_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='
                     yield BagEvent('imu', _stamp(msg.header), (
                         (w.x, w.y, w.z), (a.x, a.y, a.z), msg.header.frame_id))
                 elif kind == 'fix':
+                    c = msg.position_covariance
                     pos_var = (None if msg.position_covariance_type == 0
-                               else _variances(msg.position_covariance, 0, 4))
+                               else (float(c[0]), float(c[4])))
                     yield BagEvent('fix', _stamp(msg.header), (
                         int(msg.status.status), msg.latitude, msg.longitude, msg.altitude,
                         pos_var))
                 elif kind == 'vel':
-                    v = msg.twist.twist.linear
+                    v, c = msg.twist.twist.linear, msg.twist.covariance
                     yield BagEvent('vel', _stamp(msg.header), (
-                        (v.x, v.y, v.z), _variances(msg.twist.covariance, 0, 7)))
+                        (v.x, v.y, v.z), (float(c[0]), float(c[7]))))
                 else:
                     q = msg.pose.pose.orientation
                     yield BagEvent('truth', _stamp(msg.header), ((q.x, q.y, q.z, q.w),))

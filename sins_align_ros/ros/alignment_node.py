@@ -121,11 +121,9 @@ class AlignmentNode(Node):
               and np.isfinite([msg.latitude, msg.longitude, msg.altitude]).all())
         if ok:
             self.counts['gnss'] += 1
-            pos_var = None
-            if msg.position_covariance_type != NavSatFix.COVARIANCE_TYPE_UNKNOWN:
-                c = msg.position_covariance
-                if np.isfinite([c[0], c[4]]).all() and c[0] > 0 and c[4] > 0:
-                    pos_var = (c[0], c[4])
+            c = msg.position_covariance
+            pos_var = (None if msg.position_covariance_type
+                       == NavSatFix.COVARIANCE_TYPE_UNKNOWN else (c[0], c[4]))
             self.pipeline.position_fix(stamp_to_sec(msg.header.stamp), msg.latitude,
                                        msg.longitude, msg.altitude, pos_var=pos_var)
         else:
@@ -139,10 +137,7 @@ class AlignmentNode(Node):
             return
         self.counts['gnss_vel'] += 1
         c = msg.twist.covariance
-        vel_var = None
-        if np.isfinite([c[0], c[7]]).all() and c[0] > 0 and c[7] > 0:
-            vel_var = (c[0], c[7])
-        self.pipeline.velocity_fix(stamp_to_sec(msg.header.stamp), vel, vel_var=vel_var)
+        self.pipeline.velocity_fix(stamp_to_sec(msg.header.stamp), vel, vel_var=(c[0], c[7]))
 
     def _on_imu(self, msg):
         self._last_imu_wall = self.get_clock().now()
