@@ -130,9 +130,9 @@ class SageHusa:
         else:
             self.divergence_flags += 1
         idx = np.arange(len(self.R)) if idx is None else np.asarray(idx)
-        blk = np.ix_(idx, idx)
         if self.r_when_identifiable:
             return self.Q, self._update_identifiable_rows(upd, idx, d)
+        blk = np.ix_(idx, idx)
         R_new = (1.0 - d) * self.R[blk] + d * (np.outer(y, y) - eta @ eta.T)  # eq. 39
         # keep R positive definite: the subtraction may remove too much
         w, U = np.linalg.eigh(0.5 * (R_new + R_new.T))
