@@ -3,21 +3,46 @@
 Shared by the node and the replay tool so both treat bad input the same way.
 A sample ``(t, w_b, f_b)`` (s, rad/s, m/s^2; the mean rate and specific force
 over the interval ending at ``t``) becomes ``dtheta = w_b dt``, ``dv = f_b dt``
-with ``dt = t - t_previous``. Rules, each counted by reason:
+with ``dt = t - t_previous``. Rules, each counted by reason (the keys of
+:attr:`ImuInput.counts`):
 
-* non-finite values: the sample is skipped (``nan``);
-* a stamp equal to or before the previous one: skipped (``stamp_not_increasing``),
-  unless it is more than ``max_gap`` earlier: the clock jumped back (a looping
-  bag, a restarted simulator) and the caller must reset (``clock_jump_back``);
-* a stamp more than ``max_gap`` after the previous one: a gap (``gap``); the
-  caller restarts the alignment from this sample's stamp;
+* ``nan``: a non-finite value: the sample is skipped;
+* ``saturated``: a component at or beyond the sensor range (``gyro_range``,
+  ``accel_range``): skipped (the next good sample's interval covers it, so the
+  rate is held over the saturated stretch; a stretch longer than ``max_gap``
+  becomes a gap);
+* ``field_missing``, ``wrong_frame``: counted by the caller through
+  :meth:`ImuInput.reject` (a message whose angular velocity or acceleration
+  covariance[0] is -1, i.e. the field is not provided, or whose frame is not
+  the configured one): skipped;
+* ``stamp_not_increasing``: a stamp equal to or before the previous one
+  (zero or negative dt, repeated or out-of-order messages): skipped, unless it
+  is more than ``max_gap`` earlier: ``clock_jump_back`` (a looping bag, a
+  restarted simulator, a ``use_sim_time`` reset) and the caller must reset;
+* ``gap``: a stamp more than ``max_gap`` after the previous one (a dropped
+  stretch or a forward clock jump): the caller restarts the alignment from this
+  sample's stamp;
+* ``bridged``: an interval longer than 1.5 nominal intervals but within
+  ``max_gap`` (dropped samples): accepted, the rate held over the interval
+  (after a rate drop, until the nominal interval has caught up);
+* ``rate_change``: the nominal interval (median of the last
+  :data:`RATE_WINDOW` intervals) moved by more than 20 %: accepted (the
+  increments use each sample's own interval), reported once per change;
 * the very first sample starts the clock (its interval is unknown).
+
+Reasons that the caller should report are queued in :attr:`ImuInput.notices`
+as ``(key, text)``; :meth:`ImuInput.pop_notices` drains them.
 """
-from collections import Counter
+import math
+from collections import Counter, deque
 
 import numpy as np
 
 OK, SKIP, RESET, START = 0, 1, 2, 3
+#: samples over which the nominal interval is the median
+RATE_WINDOW = 50
+#: reasons for which a sample is skipped
+SKIP_REASONS = ('nan', 'saturated', 'field_missing', 'wrong_frame', 'stamp_not_increasing')
 
 
 class ImuInput:
@@ -27,13 +52,27 @@ class ImuInput:
     ----------
     max_gap : float
         Largest accepted stamp interval, s.
+    gyro_range, accel_range : float
+        Sensor range, rad/s and m/s^2 (``inf``: not checked); a component whose
+        magnitude reaches 0.999 of it is taken as saturated.
     """
 
-    def __init__(self, max_gap=0.5):
+    def __init__(self, max_gap=0.5, gyro_range=np.inf, accel_range=np.inf):
         self.max_gap = float(max_gap)
+        self.gyro_range = float(gyro_range)
+        self.accel_range = float(accel_range)
         self.t_last = None
         self.counts = Counter()
         self.last_reason = ''
+        self.notices = deque(maxlen=100)
+        self.dt_nominal = None
+        self._dts = deque(maxlen=RATE_WINDOW)
+
+    @classmethod
+    def from_params(cls, p):
+        """Checker for alignment parameter values ``p`` (``max_gap``, the sensor ranges)."""
+        return cls(p['max_gap'], gyro_range=math.radians(p['gyro_range_dps']),
+                   accel_range=p['accel_range_mps2'])
 
     def restart(self):
         """Forget the clock (the next sample starts it again)."""
@@ -53,7 +92,10 @@ class ImuInput:
         w_b = np.asarray(w_b, dtype=float)
         f_b = np.asarray(f_b, dtype=float)
         if not (np.isfinite(t) and np.all(np.isfinite(w_b)) and np.all(np.isfinite(f_b))):
-            return self._reject('nan', 'non-finite value in IMU sample')
+            return self.reject('nan', 'non-finite value in IMU sample')
+        if (np.max(np.abs(w_b)) >= 0.999 * self.gyro_range
+                or np.max(np.abs(f_b)) >= 0.999 * self.accel_range):
+            return self.reject('saturated', 'IMU sample at the sensor range (saturated)')
         if self.t_last is None:
             self.t_last = t
             self.counts['clock_start'] += 1
@@ -62,29 +104,66 @@ class ImuInput:
         if dt <= 0.0:
             if dt < -self.max_gap:
                 self.t_last = t
-                self.counts['clock_jump_back'] += 1
-                self.last_reason = f'IMU stamp jumped back by {-dt:.3f} s: restarting'
-                return RESET, None, None
-            return self._reject('stamp_not_increasing',
-                                f'IMU stamp not increasing (dt = {dt * 1e3:.3f} ms)')
+                self._restart_rate()
+                return self._reset('clock_jump_back',
+                                   f'IMU stamp jumped back by {-dt:.3f} s: restarting')
+            return self.reject('stamp_not_increasing',
+                               f'IMU stamp not increasing (dt = {dt * 1e3:.3f} ms)')
         if dt > self.max_gap:
             self.t_last = t
-            self.counts['gap'] += 1
-            self.last_reason = f'gap of {dt:.3f} s in IMU data (max_gap {self.max_gap} s)'
-            return RESET, None, None
+            self._restart_rate()
+            return self._reset('gap', f'gap of {dt:.3f} s in IMU data (max_gap '
+                                      f'{self.max_gap} s)')
         self.t_last = t
         self.counts['accepted'] += 1
+        self._track_rate(dt)
         return OK, w_b * dt, f_b * dt
 
-    def _reject(self, key, reason):
+    def _reset(self, key, reason):
         self.counts[key] += 1
         self.last_reason = reason
+        self.notices.append((key, reason))
+        return RESET, None, None
+
+    def reject(self, key, reason):
+        """Count a skipped sample under ``key`` with ``reason``; returns ``(SKIP, None, None)``."""
+        self.counts[key] += 1
+        self.last_reason = reason
+        self.notices.append((key, reason))
         return SKIP, None, None
+
+    def pop_notices(self):
+        """Return and clear the queued ``(key, text)`` notices."""
+        out = list(self.notices)
+        self.notices.clear()
+        return out
+
+    def _restart_rate(self):
+        self._dts.clear()
+
+    def _track_rate(self, dt):
+        nom = self.dt_nominal
+        if nom is not None and dt > 1.5 * nom:
+            self.counts['bridged'] += 1
+            self.notices.append(('bridged', f'{dt / nom - 1.0:.0f} IMU sample(s) missing before '
+                                            f't={self.t_last:.3f}: interval of {dt * 1e3:.1f} ms '
+                                            'bridged'))
+        self._dts.append(dt)
+        if len(self._dts) < RATE_WINDOW or self.counts['accepted'] % RATE_WINDOW:
+            return
+        med = float(np.median(self._dts))
+        if nom is None:
+            self.dt_nominal = med
+        elif abs(med / nom - 1.0) > 0.2:
+            self.counts['rate_change'] += 1
+            self.notices.append(('rate_change', f'IMU rate changed from {1.0 / nom:.1f} to '
+                                                f'{1.0 / med:.1f} Hz'))
+            self.dt_nominal = med
 
     @property
     def rejected(self):
-        """Number of samples rejected for bad values or stamps."""
-        return self.counts['nan'] + self.counts['stamp_not_increasing']
+        """Number of samples skipped for bad values, stamps, frames or missing fields."""
+        return sum(self.counts[k] for k in SKIP_REASONS)
 
     def convert(self, t, w_b, f_b):
         """Vectorised conversion of a whole recording (N,), (N, 3), (N, 3).
@@ -105,6 +184,7 @@ class ImuInput:
                 cur[1].append(t[k])
                 cur[2].append(dth)
                 cur[3].append(dv)
+        self.notices.clear()
         if cur is not None and cur[1]:
             segments.append(cur)
         return [(t0, np.array(tt), np.array(a), np.array(b)) for t0, tt, a, b in segments]

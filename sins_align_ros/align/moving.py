@@ -22,6 +22,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.stats import chi2
 
 from ..filters.asckf import ASCKF, CKF
 from ..filters.cubature import batched
@@ -41,6 +42,9 @@ ALPHA = np.r_[np.ones(7), np.zeros(3)]
 WHITENESS = (10, 0.5)
 #: the longest interval the error model is propagated without a measurement, s
 MAX_PREDICT = 2.0
+#: forced acceptances (after ``gate_max_rejects`` rejections each) in a row after which the
+#: inertial solution and GNSS are taken to disagree for good: the caller restarts alignment
+MAX_FORCED = 3
 
 
 class FilterDiverged(RuntimeError):
@@ -113,13 +117,24 @@ class MovingBaseAlignment:
         a weakly observable heading faded epoch after epoch otherwise grows
         without bound. With an over-confident P0 this also keeps the fading from
         rescuing it; start from an honest P0 (the pipeline's coarse stage does).
+    gate_probability : float or None
+        GNSS innovation gate (not in the seed; None: off): an epoch whose
+        normalised innovation squared exceeds the chi-square quantile of this
+        probability (m degrees of freedom) is rejected as an outlier.
+    gate_max_rejects : int
+        After this many rejected epochs in a row the next one is accepted with the
+        position and velocity variances widened by the last rejected innovation
+        squared (a position jump, or the filter lagging behind a true change,
+        then re-anchors to GNSS instead of being rejected for ever); if that
+        happens :data:`MAX_FORCED` times without ``gate_max_rejects`` accepted
+        epochs in between, :meth:`update` raises :class:`FilterDiverged`.
     """
 
     def __init__(self, C_b_n, v_n, lat, lon, h, P0, Qc, R, use_velocity=False,
                  square_root=True, fading=True, adaptive=True, use_reported_cov=False,
                  alpha=ALPHA, rho=0.95, beta=3.0, b=0.97, gate=False, lambda_max=np.inf,
                  adapt_q=False, r_ceiling=1e4, fading_gate=None, whiteness=WHITENESS,
-                 cap_at_p0=True):
+                 cap_at_p0=True, gate_probability=None, gate_max_rejects=10):
         self.mech = Strapdown(C_b_n, v_n, lat, lon, h, MechanizationOptions())
         self.Qc = np.asarray(Qc, dtype=float)
         self.use_velocity = bool(use_velocity)
@@ -143,6 +158,14 @@ class MovingBaseAlignment:
         self.n_updates = 0
         self.n_predict_only = 0
         self.last_nis = float('nan')
+        self.gate_probability = gate_probability
+        self.gate_max_rejects = int(gate_max_rejects)
+        self._thresholds = {}
+        self.n_rejected = self.n_forced = 0
+        self.consecutive_rejects = self._accepted_run = self._forced_run = 0
+        self._y_rejected = None
+        #: (t, NIS, threshold) of the last rejected epoch
+        self.last_rejection = None
 
     # -- IMU rate -------------------------------------------------------------------
     def step_imu(self, dtheta, dv, dt):
@@ -218,21 +241,65 @@ class MovingBaseAlignment:
                 kf.R[0, 0], kf.R[1, 1] = fix.pos_var
             if self.use_velocity and fix.vel_var is not None:
                 kf.R[2, 2], kf.R[3, 3] = fix.vel_var
+        max_nis = self._gate(len(idx), rows)
         try:
-            upd = kf.step(fx, z, hx, idx)
+            upd = kf.step(fx, z, hx, idx, max_nis=max_nis)
             self.last_nis = float(upd.y @ np.linalg.solve(upd.Pzz, upd.y))
         except (np.linalg.LinAlgError, ValueError):
             upd = None
         if upd is None or not (np.all(np.isfinite(kf.x)) and np.all(np.isfinite(kf.P))):
             raise FilterDiverged(f'filter diverged at t={fix.t:.3f} s (non-finite or '
                                  f'singular covariance)')
-        self.n_updates += 1
         self._restart_interval()
+        if kf.rejected:
+            self.n_rejected += 1
+            self.consecutive_rejects += 1
+            self._accepted_run = 0
+            self._y_rejected = (rows, upd.y.copy())
+            self.last_rejection = (fix.t, self.last_nis, max_nis)
+            self._feedback(None)
+            return upd
+        self.n_updates += 1
+        self.consecutive_rejects = 0
+        self._accepted_run += 1
+        if self._accepted_run >= self.gate_max_rejects:
+            self._forced_run = 0
         self._feedback(fix)
         return upd
 
+    def _gate(self, m, rows):
+        """NIS threshold of this epoch, or None (gate off, or a forced acceptance).
+
+        A forced acceptance first widens the variances of the measured states by
+        the last rejected innovation squared (see ``gate_max_rejects``).
+        """
+        if self.gate_probability is None:
+            return None
+        if self.consecutive_rejects < self.gate_max_rejects:
+            thr = self._thresholds.get(m)
+            if thr is None:
+                thr = self._thresholds[m] = float(chi2.ppf(self.gate_probability, m))
+            return thr
+        self._forced_run += 1
+        if self._forced_run >= MAX_FORCED:
+            raise FilterDiverged(
+                f'GNSS rejected by the innovation gate {self.gate_max_rejects} epochs in a row, '
+                f'{MAX_FORCED} times without recovering: the inertial solution and GNSS '
+                'disagree')
+        r_rej, y_rej = self._y_rejected
+        P = self.kf.P
+        P[r_rej, r_rej] += y_rej ** 2
+        self.kf.P = P
+        self.n_forced += 1
+        self.consecutive_rejects = 0
+        return None
+
     def _feedback(self, fix):
-        """Move the estimated errors into the mechanization (closed loop)."""
+        """Move the estimated errors into the mechanization (closed loop).
+
+        ``fix`` None (a rejected epoch): the predicted errors only; the vertical
+        channel is not touched.
+        """
         m, kf = self.mech, self.kf
         x = kf.x
         C_n_np = la.C_n_nprime(x[I_PHI])
@@ -247,9 +314,10 @@ class MovingBaseAlignment:
         m.lon -= dlon
         m._pos_prev = m._pos_prev - np.array([dlat, dlon, 0.0])
         # vertical channel: not in the model; held to the GNSS height (and velocity)
-        m.h = fix.h
-        m.v_n[2] = fix.v_n[2] if fix.v_n is not None else 0.0
-        m._pos_prev[2] = fix.h
+        if fix is not None:
+            m.h = fix.h
+            m.v_n[2] = fix.v_n[2] if fix.v_n is not None else 0.0
+            m._pos_prev[2] = fix.h
         # the corrected frame differs from the old computed one by C_n^n'^T: turn the
         # drift (resolved in the computed frame) and the residual tilts with it
         T = np.eye(la.N_STATES)
@@ -293,6 +361,12 @@ class MovingBaseAlignment:
              'Q_diag': [float(v) for v in np.diag(kf.Q)],
              'R_diag': [float(v) for v in np.diag(kf.R)],
              'gyro_drift_dph': [float(v) for v in kf.x[I_EPS] / (math.pi / 180.0 / 3600.0)]}
+        if self.gate_probability is not None:
+            s.update({'gnss_gate_probability': self.gate_probability,
+                      'gnss_gate_threshold': [self._thresholds.get(m, float(
+                          chi2.ppf(self.gate_probability, m))) for m in (2, 4)],
+                      'gnss_rejected': self.n_rejected, 'gnss_forced': self.n_forced,
+                      'gnss_consecutive_rejects': self.consecutive_rejects})
         if getattr(kf, 'lam', None) is not None:
             s['fading_factors'] = [float(v) for v in kf.lam]
             s['fading_epochs'] = int(kf.n_faded)

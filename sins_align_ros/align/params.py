@@ -88,8 +88,18 @@ ALIGNMENT_PARAMS = (
           'from the GNSS track above this horizontal speed, m/s', 0.1, 1000.0),
     Param('track_heading_sigma_deg', 10.0, '1-sigma of the track heading (crab angle, '
           'sideslip, mounting), deg', 0.1, 180.0),
-    Param('max_gap', 0.5, 'largest IMU stamp gap bridged by interpolation-free '
-          'integration, s; longer gaps restart the mechanization history', 0.001, 10.0),
+    Param('max_gap', 0.5, 'largest IMU stamp interval bridged (the rate is held over it), '
+          's; a longer gap or a backward clock jump restarts the alignment', 0.001, 10.0),
+    Param('gyro_range_dps', 2000.0, 'gyro measurement range, deg/s: a sample with a '
+          'component at it is taken as saturated and skipped', 1.0, 1e5),
+    Param('accel_range_mps2', 160.0, 'accelerometer measurement range, m/s^2: a sample with '
+          'a component at it is taken as saturated and skipped', 1.0, 1e5),
+    Param('gnss_gate_probability', 0.9999, 'moving-base filters: GNSS epochs whose normalised '
+          'innovation squared exceeds the chi-square quantile of this probability are '
+          'rejected as outliers (1.0: no gate)', 0.5, 1.0),
+    Param('gnss_gate_max_rejects', 10, 'after this many GNSS epochs rejected in a row the next '
+          'is accepted with widened position/velocity variances (re-anchoring after a jump)',
+          1, 1000),
 )
 
 _BY_NAME = {p.name: p for p in ALIGNMENT_PARAMS}

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import params as prm
+from .gnss_input import reported_variances
 from .moving import FilterDiverged, GnssFix, MovingBaseAlignment
 from ..filters import kf
 from ..models.stationary import NoiseSpec, StationaryModel
@@ -48,6 +49,12 @@ _UG = 1e-6 * earth.G0
 _GNSS_KEEP = 3600.0
 #: a queued GNSS epoch older than this (against the IMU stamps) is dropped, s
 _GNSS_MAX_LAG = 1.0
+#: a GNSS epoch stamped this far ahead of the IMU clock is dropped (clocks disagree), s
+_GNSS_MAX_LEAD = 10.0
+#: fixes whose median gives the stationary models their position
+_MEDIAN_FIXES = 31
+#: the moving-base filters say they run unaided after this long without a GNSS epoch, s
+_OUTAGE_WARN_S = 5.0
 
 
 @dataclass
@@ -156,7 +163,14 @@ class AlignmentPipeline:
         self.model = None if self.moving else StationaryModel(cfg['fine_filter'])
         #: the last valid GNSS fix (t, lat_deg, lon_deg, h), kept across resets
         self.last_fix = None
+        #: recent fixes (lat_deg, lon_deg, h): their median is the stationary position
+        self.recent_fixes = deque(maxlen=_MEDIAN_FIXES)
         self.reset()
+
+    def inherit_gnss(self, other):
+        """Take over the GNSS position history of ``other`` (a pipeline being replaced)."""
+        self.last_fix = other.last_fix
+        self.recent_fixes.extend(other.recent_fixes)
 
     # -- state ------------------------------------------------------------------
     def reset(self):
@@ -181,8 +195,10 @@ class AlignmentPipeline:
         self.engine = None
         self._fixes = deque()        # (t, lat, lon, h, pos_var) in rad, rad, m, m^2
         self._vels = deque()         # (t, v_n (3,), vel_var)
-        self._pending = deque()      # GnssFix waiting for the IMU to pass their stamp
-        self.gnss_counts = {'used': 0, 'late': 0, 'before_start': 0}
+        self._pending = deque(maxlen=100)    # fixes waiting for the IMU to pass their stamp
+        self.gnss_counts = {'used': 0, 'late': 0, 'before_start': 0, 'ahead_of_imu': 0}
+        self._t_gnss_used = None
+        self._reported = {'rejected': 0, 'ahead_of_imu': 0, 'forced': 0}
 
     def position_fix(self, t, lat_deg, lon_deg, h, pos_var=None):
         """Record a valid GNSS position (deg, deg, m); ``pos_var`` (2,) east/north m^2 or None.
@@ -195,10 +211,14 @@ class AlignmentPipeline:
         measurement, applied when the IMU stream passes its stamp.
         """
         t = float(t)
+        if self.t_last is not None and t > self.t_last + _GNSS_MAX_LEAD:
+            self.gnss_counts['ahead_of_imu'] += 1
+            return
         self.last_fix = (t, float(lat_deg), float(lon_deg), float(h))
+        self.recent_fixes.append(self.last_fix[1:])
         if not self.moving:
             return
-        rec = (t, lat_deg * DEG, lon_deg * DEG, float(h), _reported_variances(pos_var))
+        rec = (t, lat_deg * DEG, lon_deg * DEG, float(h), reported_variances(pos_var))
         self._fixes.append(rec)
         while self._fixes and self._fixes[0][0] < t - _GNSS_KEEP:
             self._fixes.popleft()
@@ -214,13 +234,22 @@ class AlignmentPipeline:
             return
         t = float(t)
         self._vels.append((t, np.asarray(v_n, dtype=float).copy(),
-                           _reported_variances(vel_var)))
+                           reported_variances(vel_var)))
         while self._vels and self._vels[0][0] < t - _GNSS_KEEP:
             self._vels.popleft()
 
     def _choose_position(self):
-        if self.cfg['use_gnss_position'] and self.last_fix is not None:
-            _, la, lo, h = self.last_fix
+        """Latitude, longitude, height for the fine filter: GNSS (median) or parameters.
+
+        Stationary models: the median of the recent fixes, so that an outlier or a
+        short jump does not set their latitude. Moving base: the last fix (the
+        filter's innovation gate judges the fixes that follow).
+        """
+        if self.cfg['use_gnss_position'] and self.recent_fixes:
+            if self.moving:
+                la, lo, h = self.last_fix[1:]
+            else:
+                la, lo, h = np.median(np.array(self.recent_fixes), axis=0)
             self.position_source = 'gnss'
         else:
             la, lo, h = (self.cfg['initial_latitude_deg'], self.cfg['initial_longitude_deg'],
@@ -433,6 +462,7 @@ class AlignmentPipeline:
             except FilterDiverged as exc:
                 self._diverged(str(exc))
                 return
+            self._t_gnss_used = t_f
             self.gnss_counts['used'] += 1
             self._att_cov = None
             self._check_convergence()
@@ -531,14 +561,20 @@ class AlignmentPipeline:
             C, v_end, lat, lon, h, P0, Qc, np.diag(R), use_velocity=use_vel,
             square_root=asckf, fading=asckf and cfg['asckf_fading'],
             adaptive=asckf and cfg['asckf_adaptive'], adapt_q=cfg['asckf_adapt_q'],
-            b=cfg['asckf_forgetting'], use_reported_cov=cfg['use_reported_gnss_covariance'])
+            b=cfg['asckf_forgetting'], use_reported_cov=cfg['use_reported_gnss_covariance'],
+            gate_probability=(None if cfg['gnss_gate_probability'] >= 1.0
+                              else cfg['gnss_gate_probability']),
+            gate_max_rejects=cfg['gnss_gate_max_rejects'])
         self.mech = self.engine.mech
         self.coarse_info.update({'velocity_source': v_src, 'heading_source': head_src,
                                  'speed_mps': speed})
         self.phase = FINE
         self.stage = 1
         self.stage_t0 = self.t_last
-        self.floor = np.zeros(3)
+        # the 10-state model has no accelerometer bias: the tilt it leaves (bias / g)
+        # is added at the output, as for the stationary models' attitude floor
+        tilt_floor = (nz.accel_bias / earth.gravity(lat, h)) ** 2
+        self.floor = np.array([tilt_floor, tilt_floor, 0.0])
         self._sig_hist.clear()
         self.P = self.engine.P
         # fixes that came in during coarse alignment are history, not measurements
@@ -614,7 +650,7 @@ class AlignmentPipeline:
 
     def _check_convergence(self):
         if self.engine is not None:
-            sig_u = math.sqrt(max(self.engine.attitude_cov()[2, 2], 0.0))
+            sig_u = math.sqrt(max(self.attitude_cov()[2, 2], 0.0))
         else:
             i_u = self.model.i_phi[2]
             sig_u = np.sqrt(self.P[i_u, i_u] + self.floor[2])
@@ -679,7 +715,7 @@ class AlignmentPipeline:
         """
         if self._att_cov is None:
             if self.engine is not None:
-                self._att_cov = self.engine.attitude_cov()
+                self._att_cov = self.engine.attitude_cov() + np.diag(self.floor)
             else:
                 ip = self.model.i_phi
                 self._att_cov = self._P[np.ix_(ip, ip)] + np.diag(self.floor)
@@ -690,6 +726,40 @@ class AlignmentPipeline:
         r = _Rows(out.t[-1:], self.mech.C_b_n[None], self.attitude_cov(), FINE).output()
         out.q[-1], out.euler[-1], out.sigma[-1], out.P_phi[-1] = r.q[0], r.euler[0], \
             r.sigma[0], r.P_phi[0]
+
+    def conditions(self):
+        """Return the current degraded conditions as ``[(level, text)]`` (1 warn, 2 error).
+
+        Counts are compared with the previous call, so each rejection is reported
+        once: GNSS epochs rejected by the innovation gate, re-anchoring after a run
+        of rejections, fixes stamped ahead of the IMU clock, and a moving-base
+        filter running without GNSS.
+        """
+        out = []
+        eng = self.engine
+        rep = self._reported
+        if eng is not None:
+            n = eng.n_rejected - rep['rejected']
+            if n > 0:
+                t_r, nis, thr = eng.last_rejection
+                out.append((1, f'{n} GNSS epoch(s) rejected by the innovation gate (last at '
+                               f't={t_r:.1f} s: NIS {nis:.1f} > {thr:.1f}, chi-square '
+                               f'{eng.gate_probability})'))
+            if eng.n_forced > rep['forced']:
+                out.append((1, f'GNSS accepted again after {eng.gate_max_rejects} rejected '
+                               'epochs, with widened position/velocity variance '
+                               '(re-anchored: position jump or filter lag)'))
+            rep['rejected'], rep['forced'] = eng.n_rejected, eng.n_forced
+            t_ref = self._t_gnss_used if self._t_gnss_used is not None else self.stage_t0
+            if t_ref is not None and self.t_last - t_ref > _OUTAGE_WARN_S:
+                out.append((1, f'no GNSS epoch used for {self.t_last - t_ref:.1f} s: '
+                               'moving-base filter running unaided (attitude sigma growing)'))
+        n = self.gnss_counts['ahead_of_imu'] - rep['ahead_of_imu']
+        if n > 0:
+            out.append((1, f'{n} GNSS message(s) stamped more than {_GNSS_MAX_LEAD:.0f} s '
+                           'ahead of the IMU clock: skipped (clocks disagree)'))
+            rep['ahead_of_imu'] = self.gnss_counts['ahead_of_imu']
+        return out
 
     def status(self):
         """Key figures for diagnostics (plain Python types)."""
@@ -709,14 +779,6 @@ class AlignmentPipeline:
             s.update({f'gnss_{k}': v for k, v in self.gnss_counts.items()})
         s.update({f'coarse_{k}': v for k, v in self.coarse_info.items()})
         return s
-
-
-def _reported_variances(var):
-    """East/north variances (2,) as reported, or None unless both are finite and positive."""
-    if var is None:
-        return None
-    v = np.asarray(var, dtype=float)[:2]
-    return v if len(v) == 2 and np.all(np.isfinite(v)) and np.all(v > 0) else None
 
 
 def feed_arrays(p, imu, gnss, use_velocity=True, block=100):

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..align import params as prm
+from ..align.gnss_input import GnssInput
 from ..align.imu_input import OK, RESET, START, ImuInput
 from ..align.pipeline import AlignmentPipeline, Output
 from ..io.bag import BagError, iter_bag
@@ -80,12 +81,17 @@ def replay_psins(path, values, log, duration=None):
 def replay_bag(path, values, args, log):
     """Run a rosbag2; returns (Output, pipeline, truth) with truth (t, q) or None.
 
-    A fault part-way through raises :class:`BagError` with ``.partial`` set to the
-    (Output, pipeline, truth) computed so far.
+    IMU and GNSS messages pass the node's input checks (the first occurrence of
+    each reason is logged, the counts at the end). A fault part-way through
+    raises :class:`BagError` with ``.partial`` set to the (Output, pipeline,
+    truth) computed so far.
     """
+    full = prm.defaults()
+    full.update(values)
     pipe = AlignmentPipeline(values)
-    conv = ImuInput(values.get('max_gap', 0.5))
-    outs, buf, truth = [], [], []
+    conv = ImuInput.from_params(full)
+    gnss = GnssInput()
+    outs, buf, truth, seen = [], [], [], set()
 
     def flush():
         if buf:
@@ -93,6 +99,12 @@ def replay_bag(path, values, args, log):
             outs.append(pipe.process(t, np.array([b[1] for b in buf]),
                                      np.array([b[2] for b in buf])))
             buf.clear()
+
+    def report(checker, source):
+        for key, text in checker.pop_notices():
+            if key not in seen:
+                seen.add(key)
+                log(f'{source}: {text} (first occurrence; counted at the end)')
 
     try:
         t_end = None
@@ -102,8 +114,12 @@ def replay_bag(path, values, args, log):
             if t_end is not None and ev.t > t_end + 1e-9:
                 break
             if ev.kind == 'imu':
-                w, f, _ = ev.data
-                action, dth, dv = conv.push(ev.t, w, f)
+                w, f, _, missing = ev.data
+                if missing:
+                    action = conv.reject('field_missing', 'angular velocity or acceleration '
+                                         'not provided (covariance[0] = -1)')[0]
+                else:
+                    action, dth, dv = conv.push(ev.t, w, f)
                 if action == OK:
                     buf.append((ev.t, dth, dv))
                     if len(buf) >= _CHUNK:
@@ -111,19 +127,24 @@ def replay_bag(path, values, args, log):
                 elif action in (RESET, START):
                     flush()
                     if action == RESET:
-                        log(f'{conv.last_reason}')
-                        pipe.reset()
+                        old, pipe = pipe, AlignmentPipeline(values)
+                        pipe.inherit_gnss(old)
                     pipe.start_clock(ev.t)
+                report(conv, 'imu')
             elif ev.kind == 'fix':
                 status, lat, lon, h, pos_var = ev.data
-                if status >= 0 and np.isfinite([lat, lon, h]).all():
+                var = gnss.fix(ev.t, status, lat, lon, h, pos_var)
+                if var is not False:
                     flush()
-                    pipe.position_fix(ev.t, lat, lon, h, pos_var=pos_var)
+                    pipe.position_fix(ev.t, lat, lon, h, pos_var=var)
+                report(gnss, 'gnss')
             elif ev.kind == 'vel':
                 v_n, vel_var = ev.data
-                if np.isfinite(v_n).all():
+                var = gnss.velocity(ev.t, v_n, vel_var)
+                if var is not False:
                     flush()
-                    pipe.velocity_fix(ev.t, v_n, vel_var=vel_var)
+                    pipe.velocity_fix(ev.t, v_n, vel_var=var)
+                report(gnss, 'gnss')
             else:
                 truth.append((ev.t, ev.data[0]))
         flush()
@@ -131,6 +152,13 @@ def replay_bag(path, values, args, log):
         flush()
         exc.partial = (Output.concat(outs), pipe, truth)
         raise
+    finally:
+        counts = {f'imu {k}': v for k, v in conv.counts.items()
+                  if k not in ('accepted', 'clock_start')}
+        counts.update({f'gnss {k}': v for k, v in gnss.counts.items()
+                       if not k.startswith('accepted')})
+        if counts:
+            log('input faults: ' + ', '.join(f'{k} {v}' for k, v in sorted(counts.items())))
     return Output.concat(outs), pipe, truth
 
 
@@ -193,7 +221,7 @@ def main(argv=None):
     except OSError as exc:
         print(f'sins_align_replay: error: cannot write output: {exc}', file=sys.stderr)
         return 1
-    for w in pipe.warnings:
+    for w in pipe.warnings + [text for _, text in pipe.conditions()]:
         log(f'warning: {w}')
     log(_summary(out, pipe))
     return status

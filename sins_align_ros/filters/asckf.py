@@ -104,6 +104,7 @@ class ASCKF:
                               r_ceiling=r_ceiling, r_when_identifiable=r_when_identifiable)
         self.lam = np.ones(n)
         self.last = None
+        self.rejected = False
 
     @property
     def P(self):
@@ -161,17 +162,31 @@ class ASCKF:
         """Time update only (no measurement this epoch): eq. 23-27 without fading."""
         self.x, self.S, _ = srckf_predict(self.x, self.S, fx, sqrt_psd(self.Q))
 
-    def step(self, fx, z, hx, idx=None):
+    def step(self, fx, z, hx, idx=None, max_nis=None):
         """One prediction with ``fx`` and one update with measurement ``z`` of ``hx``.
 
         ``idx`` (m,): which rows of the full measurement vector (and of R) ``z``
         holds, for epochs where part of the measurement is missing; default all.
+        ``max_nis``: innovation gate (not in the seed): if the normalised innovation
+        squared ``y^T Pzz^-1 y`` of the un-faded prediction exceeds it, the
+        measurement is rejected (``self.rejected``): the state keeps its
+        prediction; the noise estimator still sees the innovation (winsorised,
+        :class:`~sins_align_ros.filters.adaptive.SageHusa`), so a lasting rise of the
+        noise is learnt rather than rejected for ever.
         Returns the :class:`~sins_align_ros.filters.cubature.CubatureUpdate` of the update.
         """
         idx = np.arange(len(self.R)) if idx is None else np.asarray(idx)
         SQ, SR = sqrt_psd(self.Q), sqrt_psd(self.R[np.ix_(idx, idx)])
         xp, S_l, chi_star = srckf_predict(self.x, self.S, fx, SQ)               # eq. 23-27
         self.faded, self.white = False, True
+        self.rejected = False
+        if max_nis is not None:
+            probe = srckf_update(xp, S_l, z, hx, SR)[2]
+            if _nis(probe) > max_nis:
+                self.x, self.S, self.rejected, self.last = xp, S_l, True, probe
+                if self.adaptive:
+                    self.Q, self.R = self.noise.update(probe, idx)
+                return probe
         if self.fading:
             S_p = self._faded_sqrt(xp, S_l, chi_star, SQ, z, hx, SR, idx)
         else:
@@ -197,6 +212,7 @@ class CKF:
         self.lam = None
         self.divergence_flags = 0
         self.last = None
+        self.rejected = False
 
     def transform(self, T):
         """Change state coordinates: ``x <- T x``, ``P <- T P T^T``."""
@@ -207,10 +223,17 @@ class CKF:
         """Time update only (eq. 23-26)."""
         self.x, self.P, _ = ckf_predict(self.x, self.P, fx, self.Q)
 
-    def step(self, fx, z, hx, idx=None):
-        """Time update and measurement update; ``idx`` as in :meth:`ASCKF.step`."""
+    def step(self, fx, z, hx, idx=None, max_nis=None):
+        """Time update and measurement update; ``idx``, ``max_nis`` as in :meth:`ASCKF.step`."""
         idx = np.arange(len(self.R)) if idx is None else np.asarray(idx)
         xp, Pp, _ = ckf_predict(self.x, self.P, fx, self.Q)
-        self.x, self.P, upd = ckf_update(xp, Pp, z, hx, self.R[np.ix_(idx, idx)])
+        x, P, upd = ckf_update(xp, Pp, z, hx, self.R[np.ix_(idx, idx)])
+        self.rejected = max_nis is not None and _nis(upd) > max_nis
+        self.x, self.P = (xp, Pp) if self.rejected else (x, P)
         self.last = upd
         return upd
+
+
+def _nis(upd):
+    """Normalised innovation squared ``y^T Pzz^-1 y`` of a CubatureUpdate."""
+    return float(upd.y @ np.linalg.solve(upd.Pzz, upd.y))

@@ -26,10 +26,12 @@ class BagError(ValueError):
 class BagEvent:
     """One message in stamp order: ``kind`` is 'imu', 'fix', 'vel' or 'truth'; ``t`` its stamp (s).
 
-    ``data``: imu ``(w, f, frame_id)``; fix ``(status, lat_deg, lon_deg, h, pos_var)``
+    ``data``: imu ``(w, f, frame_id, missing)`` with ``missing`` true when the
+    message marks its angular velocity or acceleration as not provided
+    (covariance[0] = -1); fix ``(status, lat_deg, lon_deg, h, pos_var)``
     with ``pos_var`` (east, north) m^2 as reported, or None when the covariance type
     is unknown; vel ``(v_enu, vel_var)`` with ``vel_var`` (east, north) (m/s)^2 as
-    reported (the pipeline ignores variances that are not finite and positive);
+    reported (checked by :class:`~sins_align_ros.align.gnss_input.GnssInput`);
     truth ``(q_xyzw,)``.
     """
 
@@ -93,8 +95,10 @@ def iter_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='
                 kind = kinds[conn.id]
                 if kind == 'imu':
                     w, a = msg.angular_velocity, msg.linear_acceleration
+                    missing = bool(msg.angular_velocity_covariance[0] == -1.0
+                                   or msg.linear_acceleration_covariance[0] == -1.0)
                     yield BagEvent('imu', _stamp(msg.header), (
-                        (w.x, w.y, w.z), (a.x, a.y, a.z), msg.header.frame_id))
+                        (w.x, w.y, w.z), (a.x, a.y, a.z), msg.header.frame_id, missing))
                 elif kind == 'fix':
                     c = msg.position_covariance
                     pos_var = (None if msg.position_covariance_type == 0

@@ -5,7 +5,8 @@ it takes both best-effort and reliable publishers), ``gnss/fix`` and
 ``gnss/vel`` (geometry_msgs/TwistWithCovarianceStamped, ENU; used by the
 moving-base filters ckf and asckf). Every IMU
 sample goes through :class:`~sins_align_ros.align.imu_input.ImuInput` (input
-checks) and :class:`~sins_align_ros.align.pipeline.AlignmentPipeline` — the
+checks), every GNSS message through :class:`~sins_align_ros.align.gnss_input.GnssInput`,
+then :class:`~sins_align_ros.align.pipeline.AlignmentPipeline` — the
 same objects the replay tool uses — and produces:
 
 * ``imu/data`` (sensor_msgs/Imu): the input rates plus the orientation body ->
@@ -15,25 +16,35 @@ same objects the replay tool uses — and produces:
 * ``~/euler`` (geometry_msgs/Vector3Stamped): REP-103 roll, pitch, yaw in rad;
 * ``/diagnostics`` (diagnostic_msgs/DiagnosticArray, status ``<node>: alignment``).
 
+Bad input (the rules are in the two input modules) is skipped or bridged,
+counted by reason in the diagnostics' values, logged at most once per
+:data:`LOG_PERIOD_S` per reason with the number of occurrences, and raises the
+diagnostic level for the period it happened in: WARN, or ERROR when IMU
+messages arrived but none was usable.
+
 Service ``~/reset`` (std_srvs/Trigger) restarts the alignment in any phase.
-Changing an alignment parameter at runtime restarts the alignment with it.
+Changing an alignment parameter at runtime (``fine_filter`` included) restarts
+the alignment with it; invalid values are refused with the reason.
 """
 import os
 import sys
+import time
+from collections import Counter
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
 from geometry_msgs.msg import TwistWithCovarianceStamped, Vector3Stamped
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Imu, NavSatFix
 from std_srvs.srv import Trigger
 
 from .conversions import stamp_to_sec
 from .params import Param, declare
 from .runner import run
 from ..align import params as prm
+from ..align.gnss_input import GnssInput
 from ..align.imu_input import OK, RESET, START, ImuInput
 from ..align.pipeline import COARSE, WAITING, AlignmentPipeline
 
@@ -43,6 +54,8 @@ NODE_PARAMS = (
 )
 PARAMS = prm.ALIGNMENT_PARAMS + NODE_PARAMS
 _ALIGN_NAMES = {p.name for p in prm.ALIGNMENT_PARAMS}
+#: each input-fault reason is logged at most once per this many seconds (wall time)
+LOG_PERIOD_S = 5.0
 
 
 class AlignmentNode(Node):
@@ -53,21 +66,29 @@ class AlignmentNode(Node):
         self.p = declare(self, PARAMS)
         self._align_values = {k: v for k, v in self.p.items() if k in _ALIGN_NAMES}
         self.pipeline = AlignmentPipeline(self._align_values)   # ValueError: refused
-        self.input = ImuInput(self.p['max_gap'])
+        self.input = ImuInput.from_params(self.p)
+        self.gnss = GnssInput()
+        self._faults = Counter()      # reason -> occurrences in this diagnostic period
+        self._fault_text = {}         # reason -> last text
+        self._logged = {}             # reason -> (wall time of last log line, count since)
+        self._period_imu = [0, 0]     # IMU messages received, accepted in this period
         self.add_on_set_parameters_callback(self._check_pipeline_params)
         self.add_post_set_parameters_callback(self._apply_params)
         imu_qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT,
                              history=HistoryPolicy.KEEP_LAST)
         self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_qos)
-        self.create_subscription(NavSatFix, 'gnss/fix', self._on_fix, qos_profile_sensor_data)
+        gnss_qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT,
+                              history=HistoryPolicy.KEEP_LAST)
+        self.create_subscription(NavSatFix, 'gnss/fix', self._on_fix, gnss_qos)
         self.create_subscription(TwistWithCovarianceStamped, 'gnss/vel', self._on_vel,
-                                 qos_profile_sensor_data)
+                                 gnss_qos)
         self.pub_imu = self.create_publisher(Imu, 'imu/data', 50)
         self.pub_euler = self.create_publisher(Vector3Stamped, '~/euler', 50)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.create_service(Trigger, '~/reset', self._on_reset)
-        self.counts = {'imu': 0, 'wrong_frame': 0, 'gnss': 0, 'gnss_no_fix': 0, 'gnss_vel': 0,
-                       'gnss_vel_invalid': 0}
+        self.counts = {'imu': 0}
+        #: messages received per topic (before any check)
+        self.received = Counter()
         self._last_imu_wall = None
         self._events = []
         self._diag_timer = self.create_timer(self.p['diagnostic_period'],
@@ -94,13 +115,15 @@ class AlignmentNode(Node):
                 self._align_values[c.name] = c.value
         if names:
             self._restart(f'parameters changed: {", ".join(names)}')
-            self.input.max_gap = self.p['max_gap']
+            fresh = ImuInput.from_params(self.p)
+            self.input.max_gap = fresh.max_gap
+            self.input.gyro_range, self.input.accel_range = fresh.gyro_range, fresh.accel_range
 
     def _restart(self, reason, level='info', restart_clock=True):
         """Start a new pipeline with the current parameters (keeping the last GNSS fix)."""
-        fix = self.pipeline.last_fix
+        old = self.pipeline
         self.pipeline = AlignmentPipeline(self._align_values)
-        self.pipeline.last_fix = fix
+        self.pipeline.inherit_gnss(old)
         if restart_clock:
             self.input.restart()
         self._event(f'alignment restarted: {reason}', level)
@@ -116,52 +139,79 @@ class AlignmentNode(Node):
         response.message = 'alignment restarted; waiting for IMU data'
         return response
 
-    def _on_fix(self, msg):
-        ok = (msg.status.status >= NavSatStatus.STATUS_FIX
-              and np.isfinite([msg.latitude, msg.longitude, msg.altitude]).all())
-        if ok:
-            self.counts['gnss'] += 1
-            c = msg.position_covariance
-            pos_var = (None if msg.position_covariance_type
-                       == NavSatFix.COVARIANCE_TYPE_UNKNOWN else (c[0], c[4]))
-            self.pipeline.position_fix(stamp_to_sec(msg.header.stamp), msg.latitude,
-                                       msg.longitude, msg.altitude, pos_var=pos_var)
+    def _fault(self, source, key, text):
+        """Count an input fault for the diagnostics; log it at most once per LOG_PERIOD_S."""
+        key = (source, key)
+        self._faults[key] += 1
+        self._fault_text[key] = text
+        now = time.monotonic()
+        last, n = self._logged.get(key, (None, 0))
+        if last is None or now - last >= LOG_PERIOD_S:
+            more = f' ({n + 1} times in {now - last:.0f} s)' if last is not None and n else ''
+            self.get_logger().warn(f'{source}: {text}{more}')
+            self._logged[key] = (now, 0)
         else:
-            self.counts['gnss_no_fix'] += 1
+            self._logged[key] = (last, n + 1)
+
+    def _drain(self, checker, source):
+        for key, text in checker.pop_notices():
+            self._fault(source, key, text)
+
+    def _on_fix(self, msg):
+        self.received['gnss/fix'] += 1
+        t = stamp_to_sec(msg.header.stamp)
+        c = msg.position_covariance
+        pos_var = (None if msg.position_covariance_type == NavSatFix.COVARIANCE_TYPE_UNKNOWN
+                   else (c[0], c[4]))
+        var = self.gnss.fix(t, msg.status.status, msg.latitude, msg.longitude, msg.altitude,
+                            pos_var)
+        if var is not False:
+            self.pipeline.position_fix(t, msg.latitude, msg.longitude, msg.altitude,
+                                       pos_var=var)
+        self._drain(self.gnss, 'gnss')
 
     def _on_vel(self, msg):
+        self.received['gnss/vel'] += 1
+        t = stamp_to_sec(msg.header.stamp)
         v = msg.twist.twist.linear
-        vel = (v.x, v.y, v.z)
-        if not np.isfinite(vel).all():
-            self.counts['gnss_vel_invalid'] += 1
-            return
-        self.counts['gnss_vel'] += 1
         c = msg.twist.covariance
-        self.pipeline.velocity_fix(stamp_to_sec(msg.header.stamp), vel, vel_var=(c[0], c[7]))
+        var = self.gnss.velocity(t, (v.x, v.y, v.z), (c[0], c[7]))
+        if var is not False:
+            self.pipeline.velocity_fix(t, (v.x, v.y, v.z), vel_var=var)
+        self._drain(self.gnss, 'gnss')
 
     def _on_imu(self, msg):
+        self.received['imu/data_raw'] += 1
         self._last_imu_wall = self.get_clock().now()
+        self._period_imu[0] += 1
         frame = self.p['imu_frame_id']
         if frame and msg.header.frame_id != frame:
-            self.counts['wrong_frame'] += 1
-            self.get_logger().warn(f"imu/data_raw frame_id '{msg.header.frame_id}' is not "
-                                   f"'{frame}': sample skipped", throttle_duration_sec=5.0)
-            return
+            self.input.reject('wrong_frame', f"frame_id '{msg.header.frame_id}' is not "
+                                             f"'{frame}': sample skipped")
+        elif msg.angular_velocity_covariance[0] == -1.0 or (
+                msg.linear_acceleration_covariance[0] == -1.0):
+            self.input.reject('field_missing', 'angular velocity or linear acceleration not '
+                                               'provided (covariance[0] = -1): sample skipped')
+        else:
+            self._process_imu(msg)
+        self._drain(self.input, 'imu/data_raw')
+
+    def _process_imu(self, msg):
         t = stamp_to_sec(msg.header.stamp)
         w, a = msg.angular_velocity, msg.linear_acceleration
         action, dth, dv = self.input.push(t, (w.x, w.y, w.z), (a.x, a.y, a.z))
         if action == OK:
             self.counts['imu'] += 1
+            self._period_imu[1] += 1
             out = self.pipeline.process(t, dth, dv)
             self._publish(msg, out)
         elif action == START:
+            self._period_imu[1] += 1
             self.pipeline.start_clock(t)
         elif action == RESET:
+            self._period_imu[1] += 1
             self._restart(self.input.last_reason, 'warn', restart_clock=False)
             self.pipeline.start_clock(t)
-        else:
-            self.get_logger().warn(f'imu/data_raw: {self.input.last_reason}; sample skipped',
-                                   throttle_duration_sec=5.0)
 
     def _publish(self, msg, out):
         m = Imu()
@@ -205,6 +255,19 @@ class AlignmentNode(Node):
             if age > max(2.0, 3 * self.p['diagnostic_period']):
                 level = DiagnosticStatus.ERROR
                 msgs.insert(0, f'no IMU data for {age:.1f} s')
+        received, accepted = self._period_imu
+        if received and not accepted:
+            level = DiagnosticStatus.ERROR
+            msgs.insert(0, f'none of the {received} IMU messages of the last '
+                           f"{self.p['diagnostic_period']:g} s was usable")
+        for key, n in self._faults.items():
+            level = max(level, DiagnosticStatus.WARN)
+            msgs.append(f'{key[0]}: {n} x {self._fault_text[key]}')
+        self._faults.clear()
+        self._period_imu = [0, 0]
+        for lvl, text in self.pipeline.conditions():
+            level = max(level, DiagnosticStatus.ERROR if lvl >= 2 else DiagnosticStatus.WARN)
+            msgs.append(text)
         for w in self.pipeline.warnings:
             level = max(level, DiagnosticStatus.WARN)
             msgs.append(w)
@@ -216,8 +279,10 @@ class AlignmentNode(Node):
         st.message = '; '.join(msgs)
         values = dict(s)
         values.update({f'imu_{k}': v for k, v in counts.items()})
+        values.update({f'gnss_input_{k}': v for k, v in self.gnss.counts.items()})
         values.update({f'{k}_count': v for k, v in self.counts.items()})
-        values['imu_rejected_count'] = self.input.rejected + self.counts['wrong_frame']
+        values['imu_rejected_count'] = self.input.rejected
+        values['gnss_rejected_count'] = self.gnss.rejected
         st.values = [KeyValue(key=k, value=_fmt(v)) for k, v in values.items()]
         arr = DiagnosticArray()
         arr.header.stamp = self.get_clock().now().to_msg()
