@@ -146,3 +146,81 @@ def test_moving_base_bag_with_gnss_velocity_replays_like_the_node(tmp_path):
     assert replay([str(bag), '--set', 'fine_filter=asckf', '--set', 'use_gnss_velocity=true',
                    '--vel-topic', '', '--out', str(out_csv), '--quiet']) == 0
     assert final_row(out_csv)[0]['phase'] in ('fine', 'aligned')
+
+
+def _write_imu_bag(path, samples, garbage_at_end=False):
+    """A rosbag2 of IMU messages ``(stamp_ns, w_b, f_b)``, optionally then one of garbage."""
+    from rosbags.rosbag2 import Writer
+
+    from sins_align_ros.io.bag import IMU_TYPE, _typestore
+    ts = _typestore()
+    T = ts.types
+    V3 = T['geometry_msgs/msg/Vector3']
+    with Writer(path, version=8) as w:
+        c = w.add_connection('/imu/data_raw', IMU_TYPE, typestore=ts)
+        for ns, w_b, f_b in samples:
+            m = T[IMU_TYPE](
+                header=T['std_msgs/msg/Header'](
+                    stamp=T['builtin_interfaces/msg/Time'](sec=ns // 10 ** 9,
+                                                           nanosec=ns % 10 ** 9),
+                    frame_id='imu_link'),
+                orientation=T['geometry_msgs/msg/Quaternion'](x=0.0, y=0.0, z=0.0, w=1.0),
+                orientation_covariance=np.r_[-1.0, np.zeros(8)],
+                angular_velocity=V3(*w_b), angular_velocity_covariance=np.zeros(9),
+                linear_acceleration=V3(*f_b), linear_acceleration_covariance=np.zeros(9))
+            w.write(c, ns, ts.serialize_cdr(m, IMU_TYPE))
+        if garbage_at_end:
+            w.write(c, ns + 10_000_000, b'\x00\x01\x00\x00garbage')
+    return path
+
+
+def _still_equator(n):
+    """n samples at 100 Hz of a level IMU at the equator, x east: (stamp_ns, w_b, f_b)."""
+    from sins_align_ros.nav import earth
+    w_b = (0.0, earth.OMEGA_IE, 0.0)
+    f_b = (0.0, 0.0, float(earth.gravity(0.0, 0.0)))
+    return [(int(START * 1e9) + (k + 1) * 10_000_000, w_b, f_b) for k in range(n)]
+
+
+def test_corrupt_bag_writes_what_was_computed_before_the_fault(tmp_path, capsys):
+    bag = _write_imu_bag(tmp_path / 'corrupt', _still_equator(3000), garbage_at_end=True)
+    out = tmp_path / 'x.csv'
+    rc = replay([str(bag), '--set', 'coarse_duration=10', '--out', str(out)])
+    err = capsys.readouterr().err
+    assert rc == 1 and 'Traceback' not in err
+    errors = [ln for ln in err.splitlines() if 'error:' in ln]
+    assert len(errors) == 1 and 'truncated or corrupt' in errors[0]
+    row, cols = final_row(out)
+    assert len(cols['t']) == 2999 and row['phase'] == 'fine'     # every good sample written
+    assert abs(row['roll_deg']) < 0.01 and abs(row['pitch_deg']) < 0.01
+
+
+def test_bad_messages_in_a_bag_get_the_node_input_rules(tmp_path, capsys):
+    """A NaN sample and a repeated stamp in a bag: skipped, counted and reported."""
+    samples = _still_equator(2000)
+    samples[1500] = (samples[1500][0], (np.nan, 0.0, 0.0), samples[1500][2])
+    samples.insert(1600, samples[1599])
+    bag = _write_imu_bag(tmp_path / 'bad', samples)
+    out = tmp_path / 'x.csv'
+    assert replay([str(bag), '--set', 'coarse_duration=10', '--out', str(out)]) == 0
+    err = capsys.readouterr().err
+    assert 'imu: non-finite value in IMU sample (first occurrence' in err
+    assert 'input faults: imu bridged 1, imu nan 1, imu stamp_not_increasing 1' in err
+    row, cols = final_row(out)
+    assert len(cols['t']) == 1998 and row['phase'] == 'fine'     # 2001 - start, NaN, repeat
+    assert abs(row['roll_deg']) < 0.01 and abs(row['pitch_deg']) < 0.01
+
+
+def test_imu_topic_of_another_type_is_refused_with_one_line(tmp_path, capsys):
+    from rosbags.rosbag2 import Writer
+
+    from sins_align_ros.io.bag import _typestore
+    ts = _typestore()
+    with Writer(tmp_path / 'wrongtype', version=8) as w:
+        c = w.add_connection('/imu/data_raw', 'std_msgs/msg/String', typestore=ts)
+        w.write(c, 1, ts.serialize_cdr(ts.types['std_msgs/msg/String'](data='x'),
+                                       'std_msgs/msg/String'))
+    rc = replay([str(tmp_path / 'wrongtype'), '--out', str(tmp_path / 'x.csv')])
+    err = capsys.readouterr().err
+    assert rc == 1 and 'Traceback' not in err
+    assert "has type std_msgs/msg/String, expected sensor_msgs/msg/Imu" in err
