@@ -14,6 +14,7 @@ import pytest
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
+from sins_align_ros.align.gnss_input import GnssInput
 from sins_align_ros.align.imu_input import OK, RESET, START, ImuInput
 from sins_align_ros.align.pipeline import AlignmentPipeline
 
@@ -41,7 +42,8 @@ EVENTS = st.lists(st.one_of(IMU, IMU, IMU, IMU, IMU, IMU, IMU, IMU, FIX, VEL),
 def _run(events, fine_filter):
     p = AlignmentPipeline({'fine_filter': fine_filter, 'coarse_duration': 1.0,
                            'initial_latitude_deg': 30.0, 'initial_longitude_deg': 120.0})
-    conv = ImuInput(0.5)
+    conv = ImuInput(0.5, gyro_range=np.radians(2000.0), accel_range=160.0)
+    gnss = GnssInput()
     t = 1000.0
     outs = []
     for ev in events:
@@ -49,15 +51,22 @@ def _run(events, fine_filter):
             t += ev[1]
             action, dth, dv = conv.push(t, ev[2], ev[3])
             if action == OK:
+                if conv.bridge is not None:
+                    p.widen(*conv.bridge)
                 outs.append(p.process(np.array([t]), dth[None, :], dv[None, :]))
             elif action in (RESET, START):
                 if action == RESET:
                     p.reset()
                 p.start_clock(t)
         elif ev[0] == 'fix':
-            p.position_fix(t, ev[1], ev[2], ev[3])
+            var = gnss.fix(t, 0, ev[1], ev[2], ev[3])
+            if var is not False:
+                p.position_fix(t, ev[1], ev[2], ev[3], pos_var=var)
         else:
-            p.velocity_fix(t, np.array([ev[1], ev[2], 0.0]))
+            v = np.array([ev[1], ev[2], 0.0])
+            var = gnss.velocity(t, v)
+            if var is not False:
+                p.velocity_fix(t, v, vel_var=var)
     return outs, p
 
 

@@ -23,8 +23,14 @@ with ``dt = t - t_previous``. Rules, each counted by reason (the keys of
   stretch or a forward clock jump): the caller restarts the alignment from this
   sample's stamp;
 * ``bridged``: an interval longer than 1.5 nominal intervals but within
-  ``max_gap`` (dropped samples): accepted, the rate held over the interval
-  (after a rate drop, until the nominal interval has caught up);
+  ``max_gap`` (dropped or skipped samples): accepted, with the mean of the
+  rates before and after the interval (trapezoid) over it; :attr:`ImuInput.bridge`
+  then holds ``(var_phi, var_v)``, the variance (rad^2, (m/s)^2) of the attitude
+  and velocity error the bridge may leave, ``(|w_after - w_before| dt / 2)^2``
+  and likewise for the specific force, which the caller adds to the filter's
+  covariance (:meth:`~sins_align_ros.align.pipeline.AlignmentPipeline.widen`) so
+  that a bridge on a swaying base cannot leave a silently wrong attitude
+  (after a rate drop, samples are bridged until the nominal interval has caught up);
 * ``rate_change``: the nominal interval (median of the last
   :data:`RATE_WINDOW` intervals) moved by more than 20 %: accepted (the
   increments use each sample's own interval), reported once per change;
@@ -67,6 +73,9 @@ class ImuInput:
         self.notices = deque(maxlen=100)
         self.dt_nominal = None
         self._dts = deque(maxlen=RATE_WINDOW)
+        self._wf_prev = None
+        #: (var_phi, var_v) of the last accepted sample if it bridged an interval, else None
+        self.bridge = None
 
     @classmethod
     def from_params(cls, p):
@@ -77,6 +86,7 @@ class ImuInput:
     def restart(self):
         """Forget the clock (the next sample starts it again)."""
         self.t_last = None
+        self._wf_prev = None
 
     def push(self, t, w_b, f_b):
         """Check one sample.
@@ -96,14 +106,17 @@ class ImuInput:
         if (np.max(np.abs(w_b)) >= 0.999 * self.gyro_range
                 or np.max(np.abs(f_b)) >= 0.999 * self.accel_range):
             return self.reject('saturated', 'IMU sample at the sensor range (saturated)')
+        self.bridge = None
         if self.t_last is None:
             self.t_last = t
+            self._wf_prev = (w_b, f_b)
             self.counts['clock_start'] += 1
             return START, None, None
         dt = t - self.t_last
         if dt <= 0.0:
             if dt < -self.max_gap:
                 self.t_last = t
+                self._wf_prev = (w_b, f_b)
                 self._restart_rate()
                 return self._reset('clock_jump_back',
                                    f'IMU stamp jumped back by {-dt:.3f} s: restarting')
@@ -111,12 +124,18 @@ class ImuInput:
                                f'IMU stamp not increasing (dt = {dt * 1e3:.3f} ms)')
         if dt > self.max_gap:
             self.t_last = t
+            self._wf_prev = (w_b, f_b)
             self._restart_rate()
             return self._reset('gap', f'gap of {dt:.3f} s in IMU data (max_gap '
                                       f'{self.max_gap} s)')
         self.t_last = t
         self.counts['accepted'] += 1
-        self._track_rate(dt)
+        w_prev, f_prev = self._wf_prev
+        self._wf_prev = (w_b, f_b)
+        if self._track_rate(dt):
+            self.bridge = (float(np.sum((w_b - w_prev) ** 2)) * dt * dt / 4.0,
+                           float(np.sum((f_b - f_prev) ** 2)) * dt * dt / 4.0)
+            return OK, 0.5 * (w_b + w_prev) * dt, 0.5 * (f_b + f_prev) * dt
         return OK, w_b * dt, f_b * dt
 
     def _reset(self, key, reason):
@@ -142,15 +161,17 @@ class ImuInput:
         self._dts.clear()
 
     def _track_rate(self, dt):
+        """Update the nominal interval; return True if ``dt`` bridges missing samples."""
         nom = self.dt_nominal
-        if nom is not None and dt > 1.5 * nom:
+        bridged = nom is not None and dt > 1.5 * nom
+        if bridged:
             self.counts['bridged'] += 1
             self.notices.append(('bridged', f'{dt / nom - 1.0:.0f} IMU sample(s) missing before '
                                             f't={self.t_last:.3f}: interval of {dt * 1e3:.1f} ms '
                                             'bridged'))
         self._dts.append(dt)
         if len(self._dts) < RATE_WINDOW or self.counts['accepted'] % RATE_WINDOW:
-            return
+            return bridged
         med = float(np.median(self._dts))
         if nom is None:
             self.dt_nominal = med
@@ -159,6 +180,7 @@ class ImuInput:
             self.notices.append(('rate_change', f'IMU rate changed from {1.0 / nom:.1f} to '
                                                 f'{1.0 / med:.1f} Hz'))
             self.dt_nominal = med
+        return bridged
 
     @property
     def rejected(self):

@@ -32,7 +32,7 @@ import numpy as np
 
 from . import params as prm
 from .gnss_input import reported_variances
-from .moving import FilterDiverged, GnssFix, MovingBaseAlignment
+from .moving import I_PHI, I_V, FilterDiverged, GnssFix, MovingBaseAlignment
 from ..filters import kf
 from ..models.stationary import NoiseSpec, StationaryModel
 from ..nav import coarse, earth
@@ -352,6 +352,30 @@ class AlignmentPipeline:
         return Output(np.array([t]), dcm_to_quat(C)[None], eul[None],
                       euler_sigma_one(eul, P.tolist())[None], P[None],
                       np.array([self.phase], dtype=object))
+
+    def widen(self, var_phi, var_v=0.0):
+        """Widen the fine filter's covariance by an error the input may have left.
+
+        Adds ``var_phi`` (rad^2) to each misalignment variance and ``var_v``
+        ((m/s)^2) to each velocity variance (a bridged gap,
+        :class:`~sins_align_ros.align.imu_input.ImuInput`). No effect before fine
+        alignment.
+        """
+        if self.phase not in (FINE, ALIGNED) or not (var_phi > 0.0 or var_v > 0.0):
+            return
+        if self.engine is not None:
+            kf = self.engine.kf
+            P = kf.P
+            P[I_PHI, I_PHI] += np.eye(3) * var_phi
+            P[I_V, I_V] += np.eye(2) * var_v
+            kf.P = P
+        else:
+            m = self.model
+            P = self.P.copy()
+            P[m.i_phi, m.i_phi] += var_phi
+            P[m.i_v, m.i_v] += var_v
+            self.P = P
+        self._att_cov = None
 
     def start_clock(self, t0):
         """Set the stamp that the first increment starts from (before the first process call)."""

@@ -121,6 +121,9 @@ def replay_bag(path, values, args, log):
                 else:
                     action, dth, dv = conv.push(ev.t, w, f)
                 if action == OK:
+                    if conv.bridge is not None:
+                        flush()
+                        pipe.widen(*conv.bridge)
                     buf.append((ev.t, dth, dv))
                     if len(buf) >= _CHUNK:
                         flush()

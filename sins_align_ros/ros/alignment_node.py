@@ -203,6 +203,8 @@ class AlignmentNode(Node):
         if action == OK:
             self.counts['imu'] += 1
             self._period_imu[1] += 1
+            if self.input.bridge is not None:
+                self.pipeline.widen(*self.input.bridge)
             out = self.pipeline.process(t, dth, dv)
             self._publish(msg, out)
         elif action == START:
