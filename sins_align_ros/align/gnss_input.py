@@ -108,11 +108,7 @@ class GnssInput:
             self._note('out_of_range', f'gnss/fix position {lat_deg:.6g}, {lon_deg:.6g} deg, '
                                        f'{h:.6g} m is out of range: skipped')
             return False
-        v = self._variances('fix', pos_var, POS_VAR_RANGE)
-        if v is False or not self._stamp_ok('fix', t):
-            return False
-        self.counts['accepted_fix'] += 1
-        return v
+        return self._accept('fix', t, pos_var, POS_VAR_RANGE)
 
     def velocity(self, t, v_n, vel_var=None):
         """Check an ENU velocity; returns ``vel_var`` to use (None: configured), or False."""
@@ -124,10 +120,14 @@ class GnssInput:
             self._note('out_of_range', f'gnss/vel speed {np.linalg.norm(v_n):.4g} m/s is out '
                                        'of range: skipped')
             return False
-        v = self._variances('vel', vel_var, VEL_VAR_RANGE)
-        if v is False or not self._stamp_ok('vel', t):
+        return self._accept('vel', t, vel_var, VEL_VAR_RANGE)
+
+    def _accept(self, kind, t, var, rng):
+        """Check what fixes and velocities share: the reported variances, then the stamp."""
+        v = self._variances(kind, var, rng)
+        if v is False or not self._stamp_ok(kind, t):
             return False
-        self.counts['accepted_vel'] += 1
+        self.counts[f'accepted_{kind}'] += 1
         return v
 
     @property
