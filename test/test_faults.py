@@ -13,6 +13,7 @@ import pytest
 rclpy = pytest.importorskip('rclpy')
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus  # noqa: E402
+from rclpy.exceptions import InvalidParameterValueException  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
@@ -231,6 +232,9 @@ def test_fine_filter_changed_at_runtime_restarts_cleanly(rig_factory):
     rig = rig_factory(**STILL)
     rig.play(s, -np.inf, 40.0)
     assert rig.node.pipeline.model.name == 'reduced7' and rig.node.pipeline.phase == 'fine'
+    with pytest.raises(InvalidParameterValueException, match='max_gap out of range'):
+        AlignmentNode(context=rig.node.context, parameter_overrides=[
+            Parameter('max_gap', value=100.0)])
     bad = rig.node.set_parameters([Parameter('coarse_duration', value=-5.0)])[0]
     assert not bad.successful and 'coarse_duration' in bad.reason
     ok = rig.node.set_parameters([Parameter('fine_filter', value='stationary10')])[0]

@@ -224,3 +224,15 @@ def test_imu_topic_of_another_type_is_refused_with_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert rc == 1 and 'Traceback' not in err
     assert "has type std_msgs/msg/String, expected sensor_msgs/msg/Imu" in err
+
+
+def test_truncated_bag_file_gives_one_line_and_exit_1(tmp_path, capsys):
+    bag = _write_imu_bag(tmp_path / 'trunc', _still_equator(3000))
+    db = next(bag.glob('*.db3'))
+    with open(db, 'r+b') as f:
+        f.truncate(db.stat().st_size * 6 // 10)
+    rc = replay([str(bag), '--out', str(tmp_path / 'x.csv')])
+    err = capsys.readouterr().err
+    assert rc == 1 and 'Traceback' not in err
+    assert len([ln for ln in err.splitlines() if 'error:' in ln]) == 1
+    assert 'not a readable rosbag2' in err and 'malformed' in err
