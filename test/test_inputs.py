@@ -175,3 +175,14 @@ def test_feed_arrays_and_message_stream_agree():
     p2 = _run_pipeline(MessageStream(b), gnss_pos_sigma_m=1.0, gnss_vel_sigma_mps=0.1)
     a1 = quat_to_dcm(out.q[-1])
     assert np.abs(attitude_error(a1, p2.mech.C_b_n)).max() < 1e-3 * ARCMIN
+
+
+def test_gnss_epochs_beyond_the_pending_queue_are_counted_and_reported():
+    s = _ship_stream(120.0)
+    p = _run_pipeline(s)
+    assert p.engine is not None
+    t = p.t_last
+    for k in range(105):                    # stamped ahead of the IMU, within 10 s
+        p.position_fix(t + 0.05 * (k + 1), 45.7796, 126.6705, 0.0)
+    assert p.gnss_counts['queue_full'] == 5
+    assert any('5 GNSS epoch(s) dropped' in c for _, c in p.conditions())

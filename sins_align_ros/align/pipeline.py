@@ -196,7 +196,8 @@ class AlignmentPipeline:
         self._fixes = deque()        # (t, lat, lon, h, pos_var) in rad, rad, m, m^2
         self._vels = deque()         # (t, v_n (3,), vel_var)
         self._pending = deque(maxlen=100)    # fixes waiting for the IMU to pass their stamp
-        self.gnss_counts = {'used': 0, 'late': 0, 'before_start': 0, 'ahead_of_imu': 0}
+        self.gnss_counts = {'used': 0, 'late': 0, 'before_start': 0, 'ahead_of_imu': 0,
+                            'queue_full': 0}
         self._t_gnss_used = None
         self._reported = {'rejected': 0, 'ahead_of_imu': 0, 'forced': 0}
 
@@ -223,6 +224,8 @@ class AlignmentPipeline:
         while self._fixes and self._fixes[0][0] < t - _GNSS_KEEP:
             self._fixes.popleft()
         if self.engine is not None:
+            if len(self._pending) == self._pending.maxlen:
+                self.gnss_counts['queue_full'] += 1     # the oldest is dropped
             self._pending.append(rec)
 
     def velocity_fix(self, t, v_n, vel_var=None):
@@ -778,6 +781,11 @@ class AlignmentPipeline:
             if t_ref is not None and self.t_last - t_ref > _OUTAGE_WARN_S:
                 out.append((1, f'no GNSS epoch used for {self.t_last - t_ref:.1f} s: '
                                'moving-base filter running unaided (attitude sigma growing)'))
+        n = self.gnss_counts['queue_full'] - rep.get('queue_full', 0)
+        if n > 0:
+            out.append((1, f'{n} GNSS epoch(s) dropped: more than {self._pending.maxlen} '
+                           'waiting for the IMU stream to reach their stamps'))
+            rep['queue_full'] = self.gnss_counts['queue_full']
         n = self.gnss_counts['ahead_of_imu'] - rep['ahead_of_imu']
         if n > 0:
             out.append((1, f'{n} GNSS message(s) stamped more than {_GNSS_MAX_LEAD:.0f} s '
