@@ -26,6 +26,7 @@ from scipy.stats import chi2
 
 from ..filters.asckf import ASCKF, CKF
 from ..filters.cubature import batched
+from ..filters.kf import nis
 from ..models import large_azimuth as la
 from ..nav import earth
 from ..nav.frames import orthonormalize
@@ -244,7 +245,7 @@ class MovingBaseAlignment:
         max_nis = self._gate(len(idx), rows)
         try:
             upd = kf.step(fx, z, hx, idx, max_nis=max_nis)
-            self.last_nis = float(upd.y @ np.linalg.solve(upd.Pzz, upd.y))
+            self.last_nis = nis(upd.y, upd.Pzz)
         except (np.linalg.LinAlgError, ValueError):
             upd = None
         if upd is None or not (np.all(np.isfinite(kf.x)) and np.all(np.isfinite(kf.P))):
@@ -276,10 +277,7 @@ class MovingBaseAlignment:
         if self.gate_probability is None:
             return None
         if self.consecutive_rejects < self.gate_max_rejects:
-            thr = self._thresholds.get(m)
-            if thr is None:
-                thr = self._thresholds[m] = float(chi2.ppf(self.gate_probability, m))
-            return thr
+            return self._threshold(m)
         self._forced_run += 1
         if self._forced_run >= MAX_FORCED:
             raise FilterDiverged(
@@ -293,6 +291,13 @@ class MovingBaseAlignment:
         self.n_forced += 1
         self.consecutive_rejects = 0
         return None
+
+    def _threshold(self, m):
+        """Chi-square quantile of ``gate_probability`` for ``m`` measurements (cached)."""
+        thr = self._thresholds.get(m)
+        if thr is None:
+            thr = self._thresholds[m] = float(chi2.ppf(self.gate_probability, m))
+        return thr
 
     def _feedback(self, fix):
         """Move the estimated errors into the mechanization (closed loop).
@@ -363,8 +368,7 @@ class MovingBaseAlignment:
              'gyro_drift_dph': [float(v) for v in kf.x[I_EPS] / (math.pi / 180.0 / 3600.0)]}
         if self.gate_probability is not None:
             s.update({'gnss_gate_probability': self.gate_probability,
-                      'gnss_gate_threshold': [self._thresholds.get(m, float(
-                          chi2.ppf(self.gate_probability, m))) for m in (2, 4)],
+                      'gnss_gate_threshold': [self._threshold(m) for m in (2, 4)],
                       'gnss_rejected': self.n_rejected, 'gnss_forced': self.n_forced,
                       'gnss_consecutive_rejects': self.consecutive_rejects})
         if getattr(kf, 'lam', None) is not None:

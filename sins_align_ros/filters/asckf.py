@@ -18,6 +18,7 @@ from scipy.stats import chi2
 from .adaptive import SageHusa, StrongTracking
 from .cubature import (chol_lower, ckf_predict, ckf_update, sqrt_psd, srckf_predict,
                        srckf_update, tria)
+from .kf import nis
 
 
 def lag1_correlation(w):
@@ -125,9 +126,11 @@ class ASCKF:
         """How often the divergence test of eq. 20 fired."""
         return self.noise.divergence_flags
 
-    def _faded_sqrt(self, xp, S_l, chi_star, SQ, z, hx, SR, idx):
-        """Square root of the faded prediction covariance (eq. 7-17, 35); sets ``self.lam``."""
-        _, _, probe = srckf_update(xp, S_l, z, hx, SR)                           # (l) quantities
+    def _faded_sqrt(self, S_l, chi_star, SQ, probe, idx):
+        """Square root of the faded prediction covariance (eq. 7-17, 35); sets ``self.lam``.
+
+        ``probe``: the update from the un-faded prediction ``S_l`` (the (l) quantities).
+        """
         key = tuple(idx.tolist())
         tracking = self._tracking.get(key)
         if tracking is None:
@@ -138,8 +141,7 @@ class ASCKF:
         self.lam = tracking.factors(probe.y, P_l, probe.Pxz, self.Q, R)
         apply = True
         if self.fading_gate is not None:
-            nis = float(probe.y @ np.linalg.solve(probe.Pzz, probe.y))
-            apply = nis > self.fading_gate[len(idx)]
+            apply = nis(probe.y, probe.Pzz) > self.fading_gate[len(idx)]
         if self.whiteness is not None:
             L, r_min = self.whiteness
             hist = self._w_hist.setdefault(key, deque(maxlen=int(L) + 1))
@@ -180,15 +182,16 @@ class ASCKF:
         xp, S_l, chi_star = srckf_predict(self.x, self.S, fx, SQ)               # eq. 23-27
         self.faded, self.white = False, True
         self.rejected = False
-        if max_nis is not None:
-            probe = srckf_update(xp, S_l, z, hx, SR)[2]
-            if _nis(probe) > max_nis:
-                self.x, self.S, self.rejected, self.last = xp, S_l, True, probe
-                if self.adaptive:
-                    self.Q, self.R = self.noise.update(probe, idx)
-                return probe
+        # the update from the un-faded prediction: the gate's and the fading's input
+        probe = (srckf_update(xp, S_l, z, hx, SR)[2]
+                 if max_nis is not None or self.fading else None)
+        if max_nis is not None and nis(probe.y, probe.Pzz) > max_nis:
+            self.x, self.S, self.rejected, self.last = xp, S_l, True, probe
+            if self.adaptive:
+                self.Q, self.R = self.noise.update(probe, idx)
+            return probe
         if self.fading:
-            S_p = self._faded_sqrt(xp, S_l, chi_star, SQ, z, hx, SR, idx)
+            S_p = self._faded_sqrt(S_l, chi_star, SQ, probe, idx)
         else:
             S_p = S_l
         self.x, self.S, upd = srckf_update(xp, S_p, z, hx, SR)                   # eq. 28-38
@@ -228,12 +231,7 @@ class CKF:
         idx = np.arange(len(self.R)) if idx is None else np.asarray(idx)
         xp, Pp, _ = ckf_predict(self.x, self.P, fx, self.Q)
         x, P, upd = ckf_update(xp, Pp, z, hx, self.R[np.ix_(idx, idx)])
-        self.rejected = max_nis is not None and _nis(upd) > max_nis
+        self.rejected = max_nis is not None and nis(upd.y, upd.Pzz) > max_nis
         self.x, self.P = (xp, Pp) if self.rejected else (x, P)
         self.last = upd
         return upd
-
-
-def _nis(upd):
-    """Normalised innovation squared ``y^T Pzz^-1 y`` of a CubatureUpdate."""
-    return float(upd.y @ np.linalg.solve(upd.Pzz, upd.y))
