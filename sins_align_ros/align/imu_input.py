@@ -12,9 +12,9 @@ with ``dt = t - t_previous``. Rules, each counted by reason (the keys of
   rate is held over the saturated stretch; a stretch longer than ``max_gap``
   becomes a gap);
 * ``field_missing``, ``wrong_frame``: counted by the caller through
-  :meth:`ImuInput.reject` (a message whose angular velocity or acceleration
-  covariance[0] is -1, i.e. the field is not provided, or whose frame is not
-  the configured one): skipped;
+  :meth:`ImuInput.reject_missing_field` (a message whose angular velocity or
+  acceleration covariance[0] is -1, i.e. the field is not provided) or
+  :meth:`ImuInput.reject` (a frame other than the configured one): skipped;
 * ``stamp_not_increasing``: a stamp equal to or before the previous one
   (zero or negative dt, repeated or out-of-order messages): skipped, unless it
   is more than ``max_gap`` earlier: ``clock_jump_back`` (a looping bag, a
@@ -80,8 +80,20 @@ class ImuInput:
     @classmethod
     def from_params(cls, p):
         """Checker for alignment parameter values ``p`` (``max_gap``, the sensor ranges)."""
-        return cls(p['max_gap'], gyro_range=math.radians(p['gyro_range_dps']),
-                   accel_range=p['accel_range_mps2'])
+        conv = cls()
+        conv.set_params(p)
+        return conv
+
+    def set_params(self, p):
+        """Take ``max_gap`` and the sensor ranges from alignment parameter values ``p``."""
+        self.max_gap = float(p['max_gap'])
+        self.gyro_range = math.radians(p['gyro_range_dps'])
+        self.accel_range = float(p['accel_range_mps2'])
+
+    def reject_missing_field(self):
+        """Count a message that marks its rates or accelerations as not provided."""
+        return self.reject('field_missing', 'angular velocity or linear acceleration not '
+                                            'provided (covariance[0] = -1): sample skipped')
 
     def restart(self):
         """Forget the clock (the next sample starts it again)."""

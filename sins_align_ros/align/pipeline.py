@@ -199,7 +199,7 @@ class AlignmentPipeline:
         self.gnss_counts = {'used': 0, 'late': 0, 'before_start': 0, 'ahead_of_imu': 0,
                             'queue_full': 0}
         self._t_gnss_used = None
-        self._reported = {'rejected': 0, 'ahead_of_imu': 0, 'forced': 0}
+        self._reported = {'rejected': 0, 'forced': 0, 'ahead_of_imu': 0, 'queue_full': 0}
 
     def position_fix(self, t, lat_deg, lon_deg, h, pos_var=None):
         """Record a valid GNSS position (deg, deg, m); ``pos_var`` (2,) east/north m^2 or None.
@@ -764,34 +764,36 @@ class AlignmentPipeline:
         """
         out = []
         eng = self.engine
-        rep = self._reported
         if eng is not None:
-            n = eng.n_rejected - rep['rejected']
+            n = self._since_reported('rejected', eng.n_rejected)
             if n > 0:
                 t_r, nis, thr = eng.last_rejection
                 out.append((1, f'{n} GNSS epoch(s) rejected by the innovation gate (last at '
                                f't={t_r:.1f} s: NIS {nis:.1f} > {thr:.1f}, chi-square '
                                f'{eng.gate_probability})'))
-            if eng.n_forced > rep['forced']:
+            if self._since_reported('forced', eng.n_forced) > 0:
                 out.append((1, f'GNSS accepted again after {eng.gate_max_rejects} rejected '
                                'epochs, with widened position/velocity variance '
                                '(re-anchored: position jump or filter lag)'))
-            rep['rejected'], rep['forced'] = eng.n_rejected, eng.n_forced
             t_ref = self._t_gnss_used if self._t_gnss_used is not None else self.stage_t0
             if t_ref is not None and self.t_last - t_ref > _OUTAGE_WARN_S:
                 out.append((1, f'no GNSS epoch used for {self.t_last - t_ref:.1f} s: '
                                'moving-base filter running unaided (attitude sigma growing)'))
-        n = self.gnss_counts['queue_full'] - rep.get('queue_full', 0)
+        n = self._since_reported('queue_full', self.gnss_counts['queue_full'])
         if n > 0:
             out.append((1, f'{n} GNSS epoch(s) dropped: more than {self._pending.maxlen} '
                            'waiting for the IMU stream to reach their stamps'))
-            rep['queue_full'] = self.gnss_counts['queue_full']
-        n = self.gnss_counts['ahead_of_imu'] - rep['ahead_of_imu']
+        n = self._since_reported('ahead_of_imu', self.gnss_counts['ahead_of_imu'])
         if n > 0:
             out.append((1, f'{n} GNSS message(s) stamped more than {_GNSS_MAX_LEAD:.0f} s '
                            'ahead of the IMU clock: skipped (clocks disagree)'))
-            rep['ahead_of_imu'] = self.gnss_counts['ahead_of_imu']
         return out
+
+    def _since_reported(self, key, count):
+        """Return how much ``count`` grew since the last call for ``key``."""
+        n = count - self._reported[key]
+        self._reported[key] = count
+        return n
 
     def status(self):
         """Key figures for diagnostics (plain Python types)."""

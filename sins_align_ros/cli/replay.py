@@ -116,8 +116,7 @@ def replay_bag(path, values, args, log):
             if ev.kind == 'imu':
                 w, f, _, missing = ev.data
                 if missing:
-                    action = conv.reject('field_missing', 'angular velocity or acceleration '
-                                         'not provided (covariance[0] = -1)')[0]
+                    action = conv.reject_missing_field()[0]
                 else:
                     action, dth, dv = conv.push(ev.t, w, f)
                 if action == OK:

@@ -45,7 +45,7 @@ from .params import Param, declare
 from .runner import run
 from ..align import params as prm
 from ..align.gnss_input import GnssInput
-from ..align.imu_input import OK, RESET, START, ImuInput
+from ..align.imu_input import OK, RESET, SKIP, START, ImuInput
 from ..align.pipeline import COARSE, WAITING, AlignmentPipeline
 
 NODE_PARAMS = (
@@ -115,9 +115,7 @@ class AlignmentNode(Node):
                 self._align_values[c.name] = c.value
         if names:
             self._restart(f'parameters changed: {", ".join(names)}')
-            fresh = ImuInput.from_params(self.p)
-            self.input.max_gap = fresh.max_gap
-            self.input.gyro_range, self.input.accel_range = fresh.gyro_range, fresh.accel_range
+            self.input.set_params(self.p)
 
     def _restart(self, reason, level='info', restart_clock=True):
         """Start a new pipeline with the current parameters (keeping the last GNSS fix)."""
@@ -190,8 +188,7 @@ class AlignmentNode(Node):
                                              f"'{frame}': sample skipped")
         elif msg.angular_velocity_covariance[0] == -1.0 or (
                 msg.linear_acceleration_covariance[0] == -1.0):
-            self.input.reject('field_missing', 'angular velocity or linear acceleration not '
-                                               'provided (covariance[0] = -1): sample skipped')
+            self.input.reject_missing_field()
         else:
             self._process_imu(msg)
         self._drain(self.input, 'imu/data_raw')
@@ -200,18 +197,17 @@ class AlignmentNode(Node):
         t = stamp_to_sec(msg.header.stamp)
         w, a = msg.angular_velocity, msg.linear_acceleration
         action, dth, dv = self.input.push(t, (w.x, w.y, w.z), (a.x, a.y, a.z))
+        if action != SKIP:
+            self._period_imu[1] += 1
         if action == OK:
             self.counts['imu'] += 1
-            self._period_imu[1] += 1
             if self.input.bridge is not None:
                 self.pipeline.widen(*self.input.bridge)
             out = self.pipeline.process(t, dth, dv)
             self._publish(msg, out)
         elif action == START:
-            self._period_imu[1] += 1
             self.pipeline.start_clock(t)
         elif action == RESET:
-            self._period_imu[1] += 1
             self._restart(self.input.last_reason, 'warn', restart_clock=False)
             self.pipeline.start_clock(t)
 
