@@ -116,6 +116,9 @@ def main():
     except Exception as exc:                              # a crash is a result here
         crash = f'{type(exc).__name__}: {exc}'
     wall = time.monotonic() - wall0
+    if last is None or not rss:
+        print(f'soak: no minute completed: {crash}', file=sys.stderr)
+        return 1
     p = node.pipeline
     t_orig = float(last.imu['t_pub'][-1])
     err = attitude_error(p.mech.C_b_n, euler_to_dcm(last.truth_euler(t_orig)))

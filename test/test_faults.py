@@ -39,12 +39,7 @@ def _stream(name, rate, duration, seed=1):
         sc = scenario(name, duration=duration)
         block = ScenarioStream(sc, seed=seed, imu_rate_hz=rate).next_block(int(duration * rate))
         _STREAMS[key] = MessageStream(block)
-    base = _STREAMS[key]
-    s = MessageStream.__new__(MessageStream)
-    s.imu = {k: v.copy() for k, v in base.imu.items()}
-    s.gnss = {k: v.copy() for k, v in base.gnss.items()}
-    s.truth = base.truth
-    return s
+    return _STREAMS[key].copy()
 
 
 class Rig:

@@ -77,6 +77,14 @@ class MessageStream:
                          'has_vel': fix.copy()}
         self.truth = imu
 
+    def copy(self):
+        """Return an independent copy of the columns (the truth is shared, read-only)."""
+        out = MessageStream.__new__(MessageStream)
+        out.imu = {k: v.copy() for k, v in self.imu.items()}
+        out.gnss = {k: v.copy() for k, v in self.gnss.items()}
+        out.truth = self.truth
+        return out
+
     def window(self, kind, t0, t1):
         """Boolean mask of the ``kind`` ('imu' or 'gnss') messages published in [t0, t1)."""
         tp = getattr(self, kind)['t_pub']
