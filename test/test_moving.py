@@ -109,6 +109,24 @@ def test_ship_pipeline_coarse_plus_fine_reaches_arcminutes_against_truth(fine_fi
         assert 0 <= st['fading_epochs'] <= st['filter_updates']
 
 
+@pytest.mark.parametrize('name', ['static_navigation', 'ship_sway'])
+def test_coarse_on_a_base_that_does_not_translate_ignores_gnss_velocity_noise(name):
+    """GNSS-aided filters on a still or moored base: the coarse heading comes from the
+    IMU alone (velocity constant within its noise), not from noisy velocity changes:
+    0.05 m/s on the first velocity used to turn it by ~6 deg under a 0.5 deg sigma."""
+    from sins_align_ros.sim.presets import alignment_params
+    sc = scenario(name, duration=62.0)
+    b = ScenarioStream(sc, seed=1000).next_block(6200)
+    p = AlignmentPipeline(alignment_params(sc, 'asckf'))
+    p.start_clock(0.0)
+    out = feed_arrays(p, b.imu, b.gnss)
+    assert p.coarse_info['steady_velocity'] is True
+    k = np.flatnonzero(out.phase == 'fine')[0]
+    phi = attitude_error(quat_to_dcm(out.q[k]), euler_to_dcm(b.imu.euler[k]))
+    assert abs(phi[2]) < 10 * ARCMIN                        # was 367' on static_navigation
+    assert abs(phi[2]) < 3 * out.sigma[k, 2]
+
+
 @pytest.mark.parametrize('heading_err_deg', [30.0, 180.0])
 def test_fine_filter_recovers_a_large_heading_error(heading_err_deg):
     """Seed 000 ship, fine filter alone started 30/180 deg off in heading: arcminutes at 600 s.

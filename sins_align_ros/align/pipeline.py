@@ -553,11 +553,18 @@ class AlignmentPipeline:
         cfg, nz = self.cfg, self.noise
         lat, lon, h = self.position
         V, v_sig, v_src = self._gnss_velocity(tt)
-        dv_n = None if V is None else V - V[0]
+        steady = V is not None and _steady_velocity(V, v_sig)
+        dv_n = None if V is None or steady else V - V[0]
         C = coarse.inertial_frame(dth, dvv, dts, lat, h, dv_n=dv_n)
         if not self._coarse_ok(C):
             return
         sigma = self._coarse_sigma(T, lat, moving, cap=90.0 * DEG)
+        if dv_n is not None:
+            # the GNSS velocity noise enters the fit against the horizontal gravity
+            # integral, which grows as g W cos(L) T^2 / 2 (about 1 m/s after 60 s)
+            signal = earth.gravity(lat, h) * earth.OMEGA_IE * math.cos(lat) * T * T / 2.0
+            sigma[2] = min(math.hypot(sigma[2], 3.0 * math.sqrt(2.0) * v_sig / signal),
+                           90.0 * DEG)
         if V is None and moving:
             sigma[:2] *= 3.0
             self.warnings.append('the base moves and no GNSS velocity covers the coarse window: '
@@ -594,7 +601,7 @@ class AlignmentPipeline:
             gate_max_rejects=cfg['gnss_gate_max_rejects'])
         self.mech = self.engine.mech
         self.coarse_info.update({'velocity_source': v_src, 'heading_source': head_src,
-                                 'speed_mps': speed})
+                                 'speed_mps': speed, 'steady_velocity': bool(steady)})
         self.phase = FINE
         self.stage = 1
         self.stage_t0 = self.t_last
@@ -813,6 +820,18 @@ class AlignmentPipeline:
             s.update({f'gnss_{k}': v for k, v in self.gnss_counts.items()})
         s.update({f'coarse_{k}': v for k, v in self.coarse_info.items()})
         return s
+
+
+def _steady_velocity(V, v_sig):
+    """Tell whether the horizontal velocity (N, 3) is constant within its noise ``v_sig``.
+
+    Then the inertial-frame coarse alignment is better off assuming no velocity
+    change than subtracting a noisy one: its heading signal after T seconds is only
+    about g W cos(L) T^2 / 2 (1 m/s at 60 s), so 0.05 m/s of noise on the first
+    velocity alone would turn the heading by degrees.
+    """
+    dev = V[:, :2] - V[:, :2].mean(axis=0)
+    return bool(np.mean(np.sum(dev * dev, axis=1)) < 2.0 * (2.0 * v_sig * v_sig))
 
 
 def feed_arrays(p, imu, gnss, use_velocity=True, block=100):

@@ -264,3 +264,38 @@ def scenario(name, **overrides):
 def misalignment_rad(sc):
     """Return the scenario's initial misalignment in rad, (3,)."""
     return np.asarray(sc.misalignment_deg, dtype=float) * DEG
+
+
+def translates(sc, min_speed=0.2):
+    """Tell whether the scenario's vehicle moves horizontally faster than ``min_speed`` m/s.
+
+    A moored, swaying ship does not translate (its zero-mean sway and heave keep
+    the still-base models usable); a ship underway, a car or a USV does.
+    """
+    t = np.linspace(0.0, sc.duration, 401)
+    v_n = sc.trajectory.kinematics(t).v_n
+    return bool(np.max(np.hypot(v_n[:, 0], v_n[:, 1])) > min_speed)
+
+
+def alignment_params(sc, fine_filter, **overrides):
+    """Alignment parameters (``align.params`` names) that describe scenario ``sc`` honestly.
+
+    The filter is told the simulated sensor grade: constant bias and Gauss-Markov
+    bias combined into one 1-sigma bias (the filters model a constant bias), the
+    white noises, the GNSS noise and the scenario's position as the initial one.
+    ``sc.extra['alignment']`` adds scenario-specific settings; keyword overrides win.
+    """
+    s = sc.imu
+    gyro_bias = float(np.hypot(np.max(np.abs(s.gyro_bias_dph)), s.gyro_markov_dph))
+    accel_bias = float(np.hypot(np.max(np.abs(s.accel_bias_ug)), s.accel_markov_ug))
+    out = {'fine_filter': fine_filter, 'initial_latitude_deg': float(sc.trajectory.lat_deg),
+           'initial_longitude_deg': float(sc.trajectory.lon_deg),
+           'initial_height_m': float(sc.trajectory.h),
+           'gyro_bias_dph': gyro_bias, 'gyro_arw_dpsh': float(s.gyro_arw_dpsh),
+           'accel_bias_ug': accel_bias, 'accel_vrw_ug_rthz': float(s.accel_vrw_ug_rthz)}
+    if sc.gnss is not None:
+        out['gnss_pos_sigma_m'] = float(sc.gnss.pos_sigma_h)
+        out['gnss_vel_sigma_mps'] = float(sc.gnss.vel_sigma)
+    out.update(sc.extra.get('alignment', {}))
+    out.update(overrides)
+    return out
