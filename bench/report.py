@@ -43,14 +43,12 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / 'bench'))
 
 from sins_align_ros.align import params as prm  # noqa: E402
-from sins_align_ros.align.limits import (scenario_limits,  # noqa: E402
-                                         velocity_reference_heading_noise)
+from sins_align_ros.align.limits import alignment_limits  # noqa: E402
 from sins_align_ros.align.params import AVAILABLE_FINE_FILTERS, MOVING_FILTERS  # noqa: E402
 from sins_align_ros.align.pipeline import AlignmentPipeline, feed_arrays  # noqa: E402
 from sins_align_ros.nav.frames import (ARCMIN, DEG, attitude_error, euler_error,  # noqa: E402
                                        euler_to_dcm, quat_to_dcm)
 from sins_align_ros.sim.presets import alignment_params, scenario, translates  # noqa: E402
-from sins_align_ros.nav import earth  # noqa: E402
 from sins_align_ros.sim.scenario import ScenarioStream  # noqa: E402
 
 DATA = ROOT.parent / 'shared' / 'data'
@@ -164,19 +162,12 @@ def limits_of(sc, name):
     """
     cfg = {**prm.defaults(), **alignment_params(sc, fine_filter_of(name))}
     T = max(sc.duration - cfg['coarse_duration'], 1.0)
-    band = scenario_limits(sc, T, t_att=sc.duration)
-    lat = sc.trajectory.lat_deg * DEG
-    ref = 0.0           # a still base's velocity is exactly zero: no reference noise
-    if fine_filter_of(name) in MOVING_FILTERS:
-        ref = velocity_reference_heading_noise(sc.gnss.vel_sigma, sc.gnss.rate_hz, T, lat,
-                                               earth.gravity(lat, 0.0))
+    band = alignment_limits(sc, T, fine_filter_of(name), t_att=sc.duration)
     expected = np.hypot(band.bias, band.noise)
-    expected[2] = math.hypot(expected[2], ref)
-    tol = band.tolerance()
     if band.bias[2] > NO_GYROCOMPASS:
         expected[2] = math.nan
         return expected, MOTION_HEADING_BAND, 'cannot gyrocompass: heading only from motion'
-    return expected, tol[2] + 3.0 * ref, None
+    return expected, band.tolerance()[2], None
 
 
 def convergence_time(series_t, phi_u, band):

@@ -60,3 +60,22 @@ def scenario_limits(sc, T, t_att=0.0):
     tilt_noise = sc.imu.accel_vrw_ug_rthz * UG / (g * np.sqrt(T))
     noise = np.array([tilt_noise, tilt_noise, sc.imu.gyro_arw_dpsh * DPSH / (wc * np.sqrt(T))])
     return LimitBand(bias=bias, noise=noise)
+
+
+def alignment_limits(sc, T, fine_filter, t_att=0.0):
+    """Return the :class:`LimitBand` of ``fine_filter`` on scenario ``sc`` after ``T`` s.
+
+    :func:`scenario_limits`, plus for the GNSS-aided (moving-base) filters the heading
+    noise of their velocity reference (:func:`velocity_reference_heading_noise` with
+    the scenario's GNSS velocity noise and rate) in the up-axis noise term. A still
+    base's zero velocity is exact and adds nothing.
+    """
+    from .params import MOVING_FILTERS
+    band = scenario_limits(sc, T, t_att)
+    if fine_filter in MOVING_FILTERS and sc.gnss is not None:
+        lat = sc.trajectory.lat_deg * DEG
+        ref = velocity_reference_heading_noise(sc.gnss.vel_sigma, sc.gnss.rate_hz, T, lat,
+                                               earth.gravity(lat, sc.trajectory.h))
+        band.noise = band.noise.copy()
+        band.noise[2] = np.hypot(band.noise[2], ref)
+    return band
