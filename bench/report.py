@@ -514,9 +514,11 @@ def report_block(text, tag='report:summary'):
 
 def update_readme(readme, report):
     """Replace README's summary block with the report's."""
+    start, end = '<!-- report:summary -->', '<!-- /report:summary -->'
     text = readme.read_text()
-    old = report_block(text)
-    readme.write_text(text.replace(old, report_block(report.read_text()), 1))
+    head, rest = text.split(start, 1)
+    tail = rest.split(end, 1)[1]
+    readme.write_text(head + start + report_block(report.read_text()) + end + tail)
 
 
 if __name__ == '__main__':

@@ -22,12 +22,13 @@ from sensor_msgs.msg import Imu
 from .conversions import stamp_to_ns
 from .runner import stop_processes
 from ..nav.frames import ARCMIN, attitude_error, quat_to_dcm, quat_to_euler, yaw_to_heading
-from ..align.limits import scenario_limits
-from ..align.params import AVAILABLE_FINE_FILTERS
-from ..sim.presets import scenario
+from ..align.limits import alignment_limits
+from ..align.params import AVAILABLE_FINE_FILTERS, MOVING_FILTERS
+from ..sim.presets import alignment_params, scenario, translates
 
-STILL_SCENARIOS = ('static_navigation', 'static_tactical', 'seed002_1deg', 'seed002_5deg',
-                   'seed002_10deg')
+#: scenarios the demo offers: still bases, the moored ship and two ships underway
+DEMO_SCENARIOS = ('ship_sway', 'static_navigation', 'static_tactical', 'seed002_1deg',
+                  'seed002_5deg', 'seed002_10deg', 'ship_underway', 'seed000_case1')
 
 
 def _executable(name):
@@ -71,7 +72,7 @@ class _Watcher:
                     print(f'  phase -> {ph:8s} (elapsed {el:7.1f} s)  {st.message}', flush=True)
 
 
-def _report(w, sc, fine_time):
+def _report(w, sc, fine_time, fine_filter):
     if w.att is None:
         print('\nNo attitude was published on imu/data: the alignment did not finish coarse '
               'alignment (see the diagnostics above).')
@@ -84,12 +85,15 @@ def _report(w, sc, fine_time):
     err = attitude_error(quat_to_dcm(q), quat_to_dcm(w.truth[tt]))
     e = np.degrees(quat_to_euler(q))
     sig = np.sqrt(np.clip(np.diag(cov.reshape(3, 3)), 0, None))
-    band = scenario_limits(sc, fine_time)
+    band = alignment_limits(sc, fine_time, fine_filter, t_att=sc.duration)
     tol = band.tolerance()
     print(f'\nFinal attitude (REP-103): roll {e[0]:.4f} deg, pitch {e[1]:.4f} deg, yaw {e[2]:.4f} '
           f'deg (heading {np.degrees(yaw_to_heading(np.radians(e[2]))):.3f} deg from north)')
     print(f'Error against the simulator truth and the analytic limit of this {sc.name} sensor '
           f'({fine_time:.0f} s of fine alignment):')
+    if fine_filter in MOVING_FILTERS:
+        print('  (GNSS-aided: the up-axis noise term includes the GNSS velocity noise; a base '
+              'that manoeuvres can do better than this still-base limit)')
     print('  axis   error     1-sigma   bias term  noise term  limit (1.2 bias + 3 noise)')
     ok = True
     for k, axis in enumerate(('east', 'north', 'up')):
@@ -104,12 +108,14 @@ def _report(w, sc, fine_time):
 def main(argv=None):
     """Run the demo; returns the process exit code."""
     ap = argparse.ArgumentParser(prog='sins_align_demo', description=__doc__.split('\n')[0])
-    ap.add_argument('--scenario', default='static_navigation', choices=STILL_SCENARIOS,
-                    help='a still-base scenario (the stationary filters of this version)')
+    ap.add_argument('--scenario', default='ship_sway', choices=DEMO_SCENARIOS,
+                    help='simulated scenario (default: a moored ship swaying in the sea)')
     ap.add_argument('--duration', type=float, default=300.0, help='simulated seconds')
     ap.add_argument('--rate', type=float, default=20.0, help='real-time factor')
     ap.add_argument('--coarse', type=float, default=60.0, help='coarse alignment time, s')
-    ap.add_argument('--filter', default='reduced7', choices=AVAILABLE_FINE_FILTERS)
+    ap.add_argument('--filter', choices=AVAILABLE_FINE_FILTERS,
+                    help='fine filter (default: reduced7 on a base that does not translate, '
+                         'asckf with GNSS on one that does)')
     ap.add_argument('--seed', type=int, default=1)
     args = ap.parse_args(argv)
 
@@ -124,17 +130,11 @@ def main(argv=None):
           f'{args.rate:g}x real time, ROS domain {domain}', flush=True)
     procs = []
     try:
-        sc = scenario(args.scenario)
-        spec = sc.imu
-        align_args = {
-            'fine_filter': args.filter, 'coarse_duration': args.coarse,
-            'initial_latitude_deg': sc.trajectory.lat_deg,
-            'initial_longitude_deg': sc.trajectory.lon_deg,
-            'initial_height_m': float(sc.trajectory.h),
-            'gyro_bias_dph': float(np.max(spec.gyro_bias_dph)),
-            'gyro_arw_dpsh': float(spec.gyro_arw_dpsh),
-            'accel_bias_ug': float(np.max(spec.accel_bias_ug)),
-            'accel_vrw_ug_rthz': float(spec.accel_vrw_ug_rthz)}
+        sc = scenario(args.scenario, duration=args.duration)
+        if args.filter is None:
+            args.filter = 'asckf' if translates(sc) else 'reduced7'
+        print(f'  fine filter {args.filter}: {sc.description}', flush=True)
+        align_args = alignment_params(sc, args.filter, coarse_duration=args.coarse)
         cmd = [_executable('alignment_node'), '--ros-args']
         for k, v in align_args.items():
             cmd += ['-p', f'{k}:={v}']
@@ -159,7 +159,7 @@ def main(argv=None):
         end = time.monotonic() + 2.0
         while time.monotonic() < end:
             ex.spin_once(timeout_sec=0.1)
-        return _report(watcher, sc, args.duration - args.coarse)
+        return _report(watcher, sc, args.duration - args.coarse, args.filter)
     except KeyboardInterrupt:
         return 130
     finally:

@@ -1,0 +1,25 @@
+"""The README's demo command: the simulated ship through both nodes, error against truth.
+
+Runs the installed ``sins_align_demo`` (what ``scripts/demo.sh`` executes) on a
+300 s of the moored ship at 40x instead of 20x real time; it must end inside the
+analytic limit and say so.
+"""
+import os
+import subprocess
+
+import pytest
+
+
+@pytest.mark.ros
+@pytest.mark.slow
+def test_demo_aligns_the_swaying_ship_within_the_limit():
+    prefix = pytest.importorskip('ament_index_python.packages').get_package_prefix(
+        'sins_align_ros')
+    exe = os.path.join(prefix, 'lib', 'sins_align_ros', 'sins_align_demo')
+    res = subprocess.run([exe, '--rate', '40'],        # the README's demo, run faster
+                         capture_output=True, text=True, timeout=240)
+    out = res.stdout
+    assert res.returncode == 0, out + res.stderr
+    assert 'fine filter reduced7: moored ship swaying' in out
+    assert 'Final attitude (REP-103)' in out
+    assert out.count('within') == 3 and 'OUTSIDE' not in out
