@@ -1,8 +1,9 @@
 """The README's demo command: the simulated ship through both nodes, error against truth.
 
-Runs the installed ``sins_align_demo`` (what ``scripts/demo.sh`` executes) on a
-300 s of the moored ship at 40x instead of 20x real time; it must end inside the
-analytic limit and say so.
+Runs the installed ``sins_align_demo`` (what ``scripts/demo.sh`` executes) as the README
+runs it: 300 s of the moored ship at 20x real time. It must end inside the analytic limit
+and say so. (At 40x on a loaded 2-core machine the node's queue overflowed: samples were
+lost, gaps restarted the alignment, honestly reported; the README's rate is kept.)
 """
 import os
 import subprocess
@@ -16,7 +17,7 @@ def test_demo_aligns_the_swaying_ship_within_the_limit():
     prefix = pytest.importorskip('ament_index_python.packages').get_package_prefix(
         'sins_align_ros')
     exe = os.path.join(prefix, 'lib', 'sins_align_ros', 'sins_align_demo')
-    res = subprocess.run([exe, '--rate', '40'],        # the README's demo, run faster
+    res = subprocess.run([exe],                          # exactly the README's demo
                          capture_output=True, text=True, timeout=240)
     out = res.stdout
     assert res.returncode == 0, out + res.stderr
