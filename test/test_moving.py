@@ -209,3 +209,20 @@ def test_reported_gnss_variances_are_used_only_when_finite_and_positive():
     p.velocity_fix(2.0, [1.0, 0.0, 0.0], vel_var=(0.01, 0.02))
     np.testing.assert_array_equal(p._fixes[-1][4], [0.04, 0.09])
     np.testing.assert_array_equal(p._vels[-1][2], [0.01, 0.02])
+
+
+def test_gyro_bias_instability_lets_the_drift_states_follow_a_markov_bias():
+    """The drift states get the random walk 2 sigma^2 / tau of the configured Gauss-Markov
+    gyro bias; the total 1-sigma bias (constant and varying) sets their P0."""
+    from sins_align_ros.sim.presets import alignment_params
+    sc = scenario('seed003_car', duration=70.0)
+    cfg = alignment_params(sc, 'ckf')
+    assert (cfg['gyro_bias_dph'], cfg['gyro_bias_instability_dph'],
+            cfg['gyro_bias_tau_s']) == (200.0, 50.0, 300.0)
+    b = ScenarioStream(sc, seed=1).next_block(7000)
+    p = AlignmentPipeline(cfg)
+    p.start_clock(0.0)
+    feed_arrays(p, b.imu, b.gnss)
+    dph = DEG / 3600.0
+    np.testing.assert_allclose(p.engine.Qc[7:], 2.0 * (50.0 * dph) ** 2 / 300.0, rtol=1e-12)
+    assert p.noise.gyro_bias == pytest.approx(np.hypot(200.0, 50.0) * dph)

@@ -60,6 +60,12 @@ ALIGNMENT_PARAMS = (
           0.0, 36000.0),
     Param('gyro_arw_dpsh', 0.001, 'gyro angle random walk, deg/sqrt(h) (filter model)',
           0.0, 100.0),
+    Param('gyro_bias_instability_dph', 0.0, 'slowly varying part of the gyro bias (first-'
+          'order Gauss-Markov), 1 sigma, deg/h: adds to the constant bias, and the moving-base '
+          'filters let their drift states follow it (random walk 2 sigma^2 / tau)',
+          0.0, 36000.0),
+    Param('gyro_bias_tau_s', 300.0, 'correlation time of gyro_bias_instability_dph, s',
+          1.0, 1e6),
     Param('accel_bias_ug', 100.0, 'accelerometer constant bias, 1 sigma, micro-g', 0.0, 1e5),
     Param('accel_vrw_ug_rthz', 10.0, 'accelerometer white noise, micro-g/sqrt(Hz)', 0.0, 1e5),
     Param('zero_velocity_sigma', 0.01, 'zero-velocity measurement noise, m/s (still base)',

@@ -155,7 +155,8 @@ class AlignmentPipeline:
         cfg = prm.defaults()
         cfg.update(prm.validate(values or {}))
         self.cfg = cfg
-        self.noise = NoiseSpec(gyro_bias=cfg['gyro_bias_dph'] * _DPH,
+        self.noise = NoiseSpec(gyro_bias=math.hypot(cfg['gyro_bias_dph'],
+                                                    cfg['gyro_bias_instability_dph']) * _DPH,
                                gyro_arw=cfg['gyro_arw_dpsh'] * _DPSH,
                                accel_bias=cfg['accel_bias_ug'] * _UG,
                                accel_vrw=cfg['accel_vrw_ug_rthz'] * _UG)
@@ -587,7 +588,10 @@ class AlignmentPipeline:
         s_p = cfg['gnss_pos_sigma_m']
         P0 = np.diag(np.r_[[s_v ** 2] * 2, [s_p ** 2] * 2, sigma ** 2,
                            [max(nz.gyro_bias, 1e-3 * _DPH) ** 2] * 3])
-        Qc = np.r_[[nz.accel_vrw ** 2] * 2, 0.0, 0.0, [nz.gyro_arw ** 2] * 3, 0.0, 0.0, 0.0]
+        # drift states: a random constant, plus a random walk that lets them follow a
+        # Gauss-Markov bias of the given sigma and correlation time (2 sigma^2 / tau)
+        q_drift = 2.0 * (cfg['gyro_bias_instability_dph'] * _DPH) ** 2 / cfg['gyro_bias_tau_s']
+        Qc = np.r_[[nz.accel_vrw ** 2] * 2, 0.0, 0.0, [nz.gyro_arw ** 2] * 3, [q_drift] * 3]
         use_vel = bool(cfg['use_gnss_velocity'] and self._vels)
         R = [s_p ** 2] * 2 + ([cfg['gnss_vel_sigma_mps'] ** 2] * 2 if use_vel else [])
         asckf = cfg['fine_filter'] == 'asckf'

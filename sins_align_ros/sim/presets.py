@@ -280,18 +280,22 @@ def translates(sc, min_speed=0.2):
 def alignment_params(sc, fine_filter, **overrides):
     """Alignment parameters (``align.params`` names) that describe scenario ``sc`` honestly.
 
-    The filter is told the simulated sensor grade: constant bias and Gauss-Markov
-    bias combined into one 1-sigma bias (the filters model a constant bias), the
-    white noises, the GNSS noise and the scenario's position as the initial one.
+    The filter is told the simulated sensor grade: the constant gyro bias and its
+    Gauss-Markov part (``gyro_bias_instability_dph``, ``gyro_bias_tau_s``), the
+    accelerometer's constant and Gauss-Markov bias combined into one 1-sigma bias
+    (no filter models a varying accelerometer bias), the white noises, the GNSS noise
+    and the scenario's position as the initial one.
     ``sc.extra['alignment']`` adds scenario-specific settings; keyword overrides win.
     """
     s = sc.imu
-    gyro_bias = float(np.hypot(np.max(np.abs(s.gyro_bias_dph)), s.gyro_markov_dph))
+    gyro_bias = float(np.max(np.abs(s.gyro_bias_dph)))
     accel_bias = float(np.hypot(np.max(np.abs(s.accel_bias_ug)), s.accel_markov_ug))
     out = {'fine_filter': fine_filter, 'initial_latitude_deg': float(sc.trajectory.lat_deg),
            'initial_longitude_deg': float(sc.trajectory.lon_deg),
            'initial_height_m': float(sc.trajectory.h),
            'gyro_bias_dph': gyro_bias, 'gyro_arw_dpsh': float(s.gyro_arw_dpsh),
+           'gyro_bias_instability_dph': float(s.gyro_markov_dph),
+           'gyro_bias_tau_s': float(s.gyro_markov_tau_s),
            'accel_bias_ug': accel_bias, 'accel_vrw_ug_rthz': float(s.accel_vrw_ug_rthz)}
     if sc.gnss is not None:
         out['gnss_pos_sigma_m'] = float(sc.gnss.pos_sigma_h)
