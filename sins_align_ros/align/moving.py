@@ -72,6 +72,8 @@ class GnssFix:
 class MovingBaseAlignment:
     """Mechanization + seed 000 filter; see the module docstring.
 
+    ``i_phi``, ``i_v``: the misalignment and velocity-error slices of the state.
+
     Parameters
     ----------
     C_b_n : ndarray (3, 3)
@@ -130,6 +132,8 @@ class MovingBaseAlignment:
         happens :data:`MAX_FORCED` times without ``gate_max_rejects`` accepted
         epochs in between, :meth:`update` raises :class:`FilterDiverged`.
     """
+
+    i_phi, i_v = I_PHI, I_V
 
     def __init__(self, C_b_n, v_n, lat, lon, h, P0, Qc, R, use_velocity=False,
                  square_root=True, fading=True, adaptive=True, use_reported_cov=False,

@@ -10,10 +10,14 @@ import yaml
 FINE_FILTERS = ('reduced7', 'stationary10', 'stationary12', 'ckf', 'asckf', 'ukf',
                 'vbakf', 'mvbakf', 'vbckf', 'vbch')
 #: fine filters implemented in this version
-AVAILABLE_FINE_FILTERS = ('reduced7', 'stationary10', 'stationary12', 'ckf', 'asckf')
-#: fine filters for a moving base with GNSS aiding (seed 000)
-MOVING_FILTERS = ('ckf', 'asckf')
+AVAILABLE_FINE_FILTERS = ('reduced7', 'stationary10', 'stationary12', 'ckf', 'asckf',
+                          'vbckf', 'vbch')
+#: fine filters for a moving base with GNSS aiding (seed 000; vbckf/vbch: seed 004)
+MOVING_FILTERS = ('ckf', 'asckf', 'vbckf', 'vbch')
+#: the moving-base filters on seed 004's 12-state model (GNSS velocity measurement)
+ROBUST_FILTERS = ('vbckf', 'vbch')
 COARSE_METHODS = ('auto', 'analytic', 'inertial_frame')
+PREPROCESS_WAVELETS = ('sym8', 'sym4', 'db4', 'db8', 'coif2')
 
 
 @dataclass(frozen=True)
@@ -90,6 +94,25 @@ ALIGNMENT_PARAMS = (
     Param('asckf_adapt_q', False, 'asckf: estimate the process noise Q as well (seed 000 '
           'eq. 39; off by default, see README)'),
     Param('asckf_forgetting', 0.97, 'asckf: Sage-Husa forgetting factor b', 0.5, 0.9999),
+    Param('vb_forgetting', 0.98, 'vbckf/vbch: forgetting factor rho of the variational-Bayes '
+          'R estimate (memory about 1 / (1 - rho) GNSS epochs; seed 004 eq. 24)', 0.5, 1.0),
+    Param('vb_iterations', 20, 'vbckf/vbch: variational-Bayes iterations per GNSS epoch '
+          '(seed 004: N = 20)', 1, 100),
+    Param('vbch_c', 100.0, 'vbch: constant C of the adaptive robust factor gamma (seed 004 '
+          'eq. 15; the seed\'s 1.5 lets the heading variance grow every epoch, see README)',
+          0.0, 1e6),
+    Param('vb_outlier_dof', 5.0, 'vbckf/vbch: degrees of freedom of the Student-t scale that '
+          'down-weights outlier epochs (0: off, the seed\'s plain inverse-Gamma R)',
+          0.0, 1000.0),
+    Param('preprocess', False, 'IMU pre-processing before alignment (seed 004 Fig. 1): '
+          'resampling with the increments preserved, wavelet threshold denoising, delay '
+          'compensated by keeping each sample\'s stamp (output latency about '
+          'preprocess_window * 3/4 samples)'),
+    Param('preprocess_factor', 10, 'pre-processing: resampling factor (seed 004: 10)', 2, 100),
+    Param('preprocess_window', 64, 'pre-processing: IMU samples per denoising window (even; '
+          'the window moves by a quarter of it)', 8, 4096),
+    Param('preprocess_wavelet', 'sym8', 'pre-processing: wavelet (PyWavelets name)',
+          choices=PREPROCESS_WAVELETS),
     Param('track_min_speed_mps', 2.0, 'coarse alignment on a moving base takes the heading '
           'from the GNSS track above this horizontal speed, m/s', 0.1, 1000.0),
     Param('track_heading_sigma_deg', 10.0, '1-sigma of the track heading (crab angle, '

@@ -22,7 +22,9 @@ is taken from the GNSS track when the vehicle moves faster than
 ``track_min_speed_mps``; fine alignment is :mod:`.moving` (full mechanization,
 large-azimuth model, CKF/ASCKF at every GNSS epoch). GNSS epochs are queued
 and applied at the first IMU sample at or after their stamp (the measurement
-is moved back to the fix time with the current velocity).
+is moved back to the fix time with the current velocity). ``vbckf`` and ``vbch``
+(seed 004) use the same coarse stage and :mod:`.robust` (12-state large-misalignment
+model, GNSS velocity measured, variational-Bayes R, H-infinity robust factor).
 """
 import math
 from collections import deque
@@ -32,7 +34,9 @@ import numpy as np
 
 from . import params as prm
 from .gnss_input import reported_variances
-from .moving import I_PHI, I_V, FilterDiverged, GnssFix, MovingBaseAlignment
+from .moving import FilterDiverged, GnssFix, MovingBaseAlignment
+from .preprocess import Preprocessor
+from .robust import RobustAlignment
 from ..filters import kf
 from ..models.stationary import NoiseSpec, StationaryModel
 from ..nav import coarse, earth
@@ -201,6 +205,10 @@ class AlignmentPipeline:
                             'queue_full': 0}
         self._t_gnss_used = None
         self._reported = {'rejected': 0, 'forced': 0, 'ahead_of_imu': 0, 'queue_full': 0}
+        cfg = self.cfg
+        w = cfg['preprocess_window'] + cfg['preprocess_window'] % 2
+        self.pre = Preprocessor(cfg['preprocess_factor'], w, max(1, w // 4),
+                                cfg['preprocess_wavelet']) if cfg['preprocess'] else None
 
     def position_fix(self, t, lat_deg, lon_deg, h, pos_var=None):
         """Record a valid GNSS position (deg, deg, m); ``pos_var`` (2,) east/north m^2 or None.
@@ -267,6 +275,26 @@ class AlignmentPipeline:
         return 0.0 if self.t_first is None else self.t_last - self.t_first
 
     # -- processing ---------------------------------------------------------------
+    def feed(self, t, dtheta, dv):
+        """Process samples through the optional pre-processing stage (``preprocess``).
+
+        Without it this is :meth:`process`. With it the samples are resampled and
+        denoised (:mod:`.preprocess`) and come out later, each with its own stamp:
+        the returned :class:`Output` has a row per sample finished by this call
+        (none while the stage fills, several at once after).
+        """
+        if self.pre is None:
+            return self.process(t, dtheta, dv)
+        t, dtheta, dv = self.pre.push(t, dtheta, dv)
+        return self.process(t, dtheta, dv) if len(t) else Output.empty()
+
+    def flush(self):
+        """Process the samples the pre-processing stage still holds (end of a recording)."""
+        if self.pre is None:
+            return Output.empty()
+        t, dtheta, dv = self.pre.flush()
+        return self.process(t, dtheta, dv) if len(t) else Output.empty()
+
     def process(self, t, dtheta, dv):
         """Process samples with end stamps ``t`` (N,) and increments (N, 3) over (t_{k-1}, t_k].
 
@@ -368,11 +396,12 @@ class AlignmentPipeline:
         if self.phase not in (FINE, ALIGNED) or not (var_phi > 0.0 or var_v > 0.0):
             return
         if self.engine is not None:
-            kf = self.engine.kf
-            P = kf.P
-            P[I_PHI, I_PHI] += np.eye(3) * var_phi
-            P[I_V, I_V] += np.eye(2) * var_v
-            kf.P = P
+            eng = self.engine
+            P = eng.kf.P
+            k = np.arange(len(P))
+            P[k[eng.i_phi], k[eng.i_phi]] += var_phi
+            P[k[eng.i_v], k[eng.i_v]] += var_v
+            eng.kf.P = P
         else:
             m = self.model
             P = self.P.copy()
@@ -585,24 +614,30 @@ class AlignmentPipeline:
             lat += v_end[1] * (self.t_last - t_f) / (R_M + h)
             lon += v_end[0] * (self.t_last - t_f) / ((R_N + h) * math.cos(lat))
         s_v = 0.5 if v_sig is None else max(2.0 * v_sig, 0.02)
-        s_p = cfg['gnss_pos_sigma_m']
-        P0 = np.diag(np.r_[[s_v ** 2] * 2, [s_p ** 2] * 2, sigma ** 2,
-                           [max(nz.gyro_bias, 1e-3 * _DPH) ** 2] * 3])
         # drift states: a random constant, plus a random walk that lets them follow a
         # Gauss-Markov bias of the given sigma and correlation time (2 sigma^2 / tau)
         q_drift = 2.0 * (cfg['gyro_bias_instability_dph'] * _DPH) ** 2 / cfg['gyro_bias_tau_s']
-        Qc = np.r_[[nz.accel_vrw ** 2] * 2, 0.0, 0.0, [nz.gyro_arw ** 2] * 3, [q_drift] * 3]
-        use_vel = bool(cfg['use_gnss_velocity'] and self._vels)
-        R = [s_p ** 2] * 2 + ([cfg['gnss_vel_sigma_mps'] ** 2] * 2 if use_vel else [])
-        asckf = cfg['fine_filter'] == 'asckf'
-        self.engine = MovingBaseAlignment(
-            C, v_end, lat, lon, h, P0, Qc, np.diag(R), use_velocity=use_vel,
-            square_root=asckf, fading=asckf and cfg['asckf_fading'],
-            adaptive=asckf and cfg['asckf_adaptive'], adapt_q=cfg['asckf_adapt_q'],
-            b=cfg['asckf_forgetting'], use_reported_cov=cfg['use_reported_gnss_covariance'],
-            gate_probability=(None if cfg['gnss_gate_probability'] >= 1.0
-                              else cfg['gnss_gate_probability']),
-            gate_max_rejects=cfg['gnss_gate_max_rejects'])
+        gate = dict(gate_probability=(None if cfg['gnss_gate_probability'] >= 1.0
+                                      else cfg['gnss_gate_probability']),
+                    gate_max_rejects=cfg['gnss_gate_max_rejects'])
+        drift0 = max(nz.gyro_bias, 1e-3 * _DPH) ** 2
+        if cfg['fine_filter'] in prm.ROBUST_FILTERS:
+            self.engine = self._robust_engine(C, v_end, lat, lon, h, sigma, s_v, drift0,
+                                              q_drift, gate)
+        else:
+            s_p = cfg['gnss_pos_sigma_m']
+            P0 = np.diag(np.r_[[s_v ** 2] * 2, [s_p ** 2] * 2, sigma ** 2, [drift0] * 3])
+            Qc = np.r_[[nz.accel_vrw ** 2] * 2, 0.0, 0.0, [nz.gyro_arw ** 2] * 3,
+                       [q_drift] * 3]
+            use_vel = bool(cfg['use_gnss_velocity'] and self._vels)
+            R = [s_p ** 2] * 2 + ([cfg['gnss_vel_sigma_mps'] ** 2] * 2 if use_vel else [])
+            asckf = cfg['fine_filter'] == 'asckf'
+            self.engine = MovingBaseAlignment(
+                C, v_end, lat, lon, h, P0, Qc, np.diag(R), use_velocity=use_vel,
+                square_root=asckf, fading=asckf and cfg['asckf_fading'],
+                adaptive=asckf and cfg['asckf_adaptive'], adapt_q=cfg['asckf_adapt_q'],
+                b=cfg['asckf_forgetting'], use_reported_cov=cfg['use_reported_gnss_covariance'],
+                **gate)
         self.mech = self.engine.mech
         self.coarse_info.update({'velocity_source': v_src, 'heading_source': head_src,
                                  'speed_mps': speed, 'steady_velocity': bool(steady)})
@@ -610,13 +645,30 @@ class AlignmentPipeline:
         self.stage = 1
         self.stage_t0 = self.t_last
         # the 10-state model has no accelerometer bias: the tilt it leaves (bias / g)
-        # is added at the output, as for the stationary models' attitude floor
-        tilt_floor = (nz.accel_bias / earth.gravity(lat, h)) ** 2
+        # is added at the output, as for the stationary models' attitude floor (the
+        # 12-state model of vbckf/vbch estimates the bias itself)
+        tilt_floor = 0.0 if isinstance(self.engine, RobustAlignment) else (
+            nz.accel_bias / earth.gravity(lat, h)) ** 2
         self.floor = np.array([tilt_floor, tilt_floor, 0.0])
         self._sig_hist.clear()
         self.P = self.engine.P
         # fixes that came in during coarse alignment are history, not measurements
         self._pending.clear()
+
+    def _robust_engine(self, C, v_n, lat, lon, h, sigma, s_v, drift0, q_drift, gate):
+        """Seed 004's VBCKF / VBCH engine (12 states, GNSS velocity measured)."""
+        cfg, nz = self.cfg, self.noise
+        P0 = np.diag(np.r_[sigma ** 2, [s_v ** 2] * 3, [drift0] * 3,
+                           [max(nz.accel_bias, 1e-6 * earth.G0) ** 2] * 3])
+        Qc = np.r_[[nz.gyro_arw ** 2] * 3, [nz.accel_vrw ** 2] * 3, [q_drift] * 3, [0.0] * 3]
+        R = np.eye(3) * cfg['gnss_vel_sigma_mps'] ** 2
+        if not self._vels:
+            self.warnings.append(f"{cfg['fine_filter']} measures the GNSS velocity: no "
+                                 'velocity has arrived yet (fixes reset the position only)')
+        return RobustAlignment(C, v_n, lat, lon, h, P0, Qc, R,
+                               robust=cfg['fine_filter'] == 'vbch', rho=cfg['vb_forgetting'],
+                               n_iter=cfg['vb_iterations'], C=cfg['vbch_c'],
+                               dof=cfg['vb_outlier_dof'] or None, **gate)
 
     def _coarse_sigma(self, T, lat, moving, cap=30.0 * DEG):
         """Conservative 1-sigma misalignment (rad) after coarse alignment over T seconds."""
@@ -859,5 +911,6 @@ def feed_arrays(p, imu, gnss, use_velocity=True, block=100):
                     p.velocity_fix(gnss.t[gi], gnss.v_n[gi],
                                    vel_var=np.asarray(gnss.vel_cov)[:2])
             gi += 1
-        outs.append(p.process(imu.t[i:j], imu.dtheta[i:j], imu.dv[i:j]))
+        outs.append(p.feed(imu.t[i:j], imu.dtheta[i:j], imu.dv[i:j]))
+    outs.append(p.flush())
     return Output.concat(outs)

@@ -75,7 +75,8 @@ def replay_psins(path, values, log, duration=None):
     pipe = AlignmentPipeline(v)
     pipe.start_clock(rec.t0)
     n = len(rec.t) if duration is None else int(np.searchsorted(rec.t, rec.t0 + duration + 1e-9))
-    return pipe.process(rec.t[:n], rec.dtheta[:n], rec.dv[:n]), pipe, None
+    out = pipe.feed(rec.t[:n], rec.dtheta[:n], rec.dv[:n])
+    return Output.concat([out, pipe.flush()]), pipe, None
 
 
 def replay_bag(path, values, args, log):
@@ -96,8 +97,8 @@ def replay_bag(path, values, args, log):
     def flush():
         if buf:
             t = np.array([b[0] for b in buf])
-            outs.append(pipe.process(t, np.array([b[1] for b in buf]),
-                                     np.array([b[2] for b in buf])))
+            outs.append(pipe.feed(t, np.array([b[1] for b in buf]),
+                                  np.array([b[2] for b in buf])))
             buf.clear()
 
     def report(checker, source):
@@ -150,6 +151,7 @@ def replay_bag(path, values, args, log):
             else:
                 truth.append((ev.t, ev.data[0]))
         flush()
+        outs.append(pipe.flush())           # samples still in the pre-processing stage
     except BagError as exc:
         flush()
         exc.partial = (Output.concat(outs), pipe, truth)

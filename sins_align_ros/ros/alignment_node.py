@@ -29,7 +29,7 @@ the alignment with it; invalid values are refused with the reason.
 import os
 import sys
 import time
-from collections import Counter
+from collections import Counter, deque
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -66,6 +66,9 @@ class AlignmentNode(Node):
         self.p = declare(self, PARAMS)
         self._align_values = {k: v for k, v in self.p.items() if k in _ALIGN_NAMES}
         self.pipeline = AlignmentPipeline(self._align_values)   # ValueError: refused
+        #: recent (stamp, message): with pre-processing an output refers to an earlier
+        #: sample, published with that sample's header
+        self._recent = deque(maxlen=4 * 4096 + 64)
         self.input = ImuInput.from_params(self.p)
         self.gnss = GnssInput()
         self._faults = Counter()      # reason -> occurrences in this diagnostic period
@@ -203,29 +206,36 @@ class AlignmentNode(Node):
             self.counts['imu'] += 1
             if self.input.bridge is not None:
                 self.pipeline.widen(*self.input.bridge)
-            out = self.pipeline.process(t, dth, dv)
-            self._publish(msg, out)
+            out = self.pipeline.feed(t, dth, dv)
+            if self.pipeline.pre is None:
+                self._publish(msg, out)
+            else:
+                self._recent.append((t, msg))
+                for k, t_k in enumerate(out.t):        # each finished sample, its own header
+                    while len(self._recent) > 1 and self._recent[0][0] < t_k - 1e-9:
+                        self._recent.popleft()
+                    self._publish(self._recent[0][1], out, k)
         elif action == START:
             self.pipeline.start_clock(t)
         elif action == RESET:
             self._restart(self.input.last_reason, 'warn', restart_clock=False)
             self.pipeline.start_clock(t)
 
-    def _publish(self, msg, out):
+    def _publish(self, msg, out, k=-1):
         m = Imu()
         m.header = msg.header
         m.angular_velocity = msg.angular_velocity
         m.angular_velocity_covariance = msg.angular_velocity_covariance
         m.linear_acceleration = msg.linear_acceleration
         m.linear_acceleration_covariance = msg.linear_acceleration_covariance
-        q = out.q[-1]
+        q = out.q[k]
         if np.isfinite(q[0]):
             m.orientation.x, m.orientation.y, m.orientation.z, m.orientation.w = (
                 float(q[0]), float(q[1]), float(q[2]), float(q[3]))
-            m.orientation_covariance = [float(v) for v in out.P_phi[-1].ravel()]
+            m.orientation_covariance = [float(v) for v in out.P_phi[k].ravel()]
             e = Vector3Stamped()
             e.header = msg.header
-            e.vector.x, e.vector.y, e.vector.z = (float(v) for v in out.euler[-1])
+            e.vector.x, e.vector.y, e.vector.z = (float(v) for v in out.euler[k])
             self.pub_euler.publish(e)
         else:
             m.orientation_covariance[0] = -1.0

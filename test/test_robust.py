@@ -1,0 +1,182 @@
+"""Seed 004: the 12-state large-misalignment model against the mechanization, the VB and
+H-infinity filter cores against closed forms, and VBCKF / VBCH alignment of the USV."""
+import numpy as np
+import pytest
+
+from sins_align_ros.filters import kf
+from sins_align_ros.filters.cubature import batched
+from sins_align_ros.filters.vb import VBCH, VBCKF, hinf_posterior, robust_gamma2, vb_update
+from sins_align_ros.models import large_misalignment as lm
+from sins_align_ros.nav.frames import DEG, euler_to_dcm
+from sins_align_ros.nav.mechanization import Strapdown
+from sins_align_ros.sim.imu import DPH, UG, ImuSimulator, ImuSpec
+from sins_align_ros.sim.presets import SEVERE_SEA
+from sins_align_ros.sim.trajectory import Trajectory
+
+
+def test_C_n_nprime_is_three_frame_rotations_and_its_inverse_is_exact():
+    phi = np.array([0.3, -0.4, 2.5])
+    A = lm.C_n_nprime(phi)
+    np.testing.assert_allclose(A @ A.T, np.eye(3), atol=1e-15)
+    np.testing.assert_allclose(lm.misalignment_of(A, np.eye(3)), phi, atol=1e-14)
+    # small angles: I - [phi x], the package's convention
+    s = np.array([1e-6, -2e-6, 3e-6])
+    skew = np.array([[0, -s[2], s[1]], [s[2], 0, -s[0]], [-s[1], s[0], 0]])
+    np.testing.assert_allclose(lm.C_n_nprime(s), np.eye(3) - skew, atol=1e-11)
+
+
+def test_euler_rate_matrix_is_the_derivative_of_C_n_nprime():
+    """``-dA/dt A^T = [(C_w phi') x]`` by finite differences."""
+    phi, rate = np.array([0.2, -0.5, 1.1]), np.array([0.01, -0.02, 0.03])
+    h = 1e-6
+    dA = (lm.C_n_nprime(phi + h * rate) - lm.C_n_nprime(phi - h * rate)) / (2 * h)
+    W = -dA @ lm.C_n_nprime(phi).T
+    w = np.array([W[2, 1], W[0, 2], W[1, 0]])
+    np.testing.assert_allclose(lm.euler_rate_inverse(phi[:, None], w[:, None])[:, 0], rate,
+                               rtol=1e-7)
+
+
+@pytest.mark.parametrize('phi0_deg', [(10.0, 10.0, 30.0), (-20.0, 15.0, 150.0)])
+def test_model_predicts_the_mechanization_errors_in_severe_sea(phi0_deg):
+    """Seed 004 eq. 3: 30 s of a rolling USV, large misalignment, gyro and accelerometer
+    biases; the model (10 Hz RK4, mean computed-frame force and attitude) follows the
+    mechanization's attitude and velocity errors."""
+    traj = Trajectory(22.0, 113.5, 0.0, heading_deg=120.0, speed=1.0, sway=SEVERE_SEA)
+    eps_b = np.array([30.0, -20.0, 50.0]) * DPH
+    nab_b = np.array([800.0, -500.0, 300.0]) * UG
+    sim = ImuSimulator(traj, ImuSpec(gyro_bias_dph=eps_b / DPH, accel_bias_ug=nab_b / UG),
+                       100.0)
+    e0, v0, p0 = sim.initial_truth()
+    c = sim.next_chunk(3000)
+    phi0 = np.array(phi0_deg) * DEG
+    m = Strapdown(lm.C_n_nprime(phi0) @ euler_to_dcm(e0), v0, *p0)
+    x = np.r_[phi0, 0.0, 0.0, 0.0, eps_b, nab_b]
+    dv_sum, v_sum, C_sum = np.zeros(3), np.zeros(3), np.zeros((3, 3))
+    for k in range(3000):
+        C = m.step(c.dtheta[k], c.dv[k], 0.01)
+        dv_sum += m.dv_sf
+        v_sum += m.v_n * 0.01
+        C_sum += C * 0.01
+        if k % 10 == 9:
+            x = lm.propagate(x, dv_sum / 0.1, v_sum / 0.1, C_sum / 0.1, m.lat, m.h, 0.1)
+            dv_sum, v_sum, C_sum = np.zeros(3), np.zeros(3), np.zeros((3, 3))
+    phi = lm.misalignment_of(m.C_b_n, euler_to_dcm(c.euler[-1]))
+    dv = m.v_n - c.v_n[-1]
+    change = np.abs(phi - phi0).max()
+    assert change > 5e-3                             # the misalignment moved: a real check
+    np.testing.assert_allclose(x[lm.I_PHI], phi, atol=1e-3 * change)
+    assert np.abs(dv).max() > 10.0
+    np.testing.assert_allclose(x[lm.I_V], dv, rtol=0.01, atol=0.01 * np.abs(dv).max())
+
+
+def _linear_problem(seed, n=200, r_true=4.0):
+    """Constant-velocity 1-D track with noise ``r_true`` on its position measurement."""
+    rng = np.random.default_rng(seed)
+    F = np.array([[1.0, 1.0], [0.0, 1.0]])
+    Q = np.diag([1e-4, 1e-4])
+    x = np.array([0.0, 1.0])
+    zs = []
+    for _ in range(n):
+        x = F @ x + rng.multivariate_normal(np.zeros(2), Q)
+        zs.append(x[:1] + np.sqrt(r_true) * rng.standard_normal(1))
+    return F, Q, zs
+
+
+def test_vbckf_with_a_fixed_R_is_the_linear_kalman_filter():
+    F, Q, zs = _linear_problem(1, n=30)
+    H = np.array([[1.0, 0.0]])
+    f = VBCKF(np.zeros(2), np.eye(2) * 10.0, Q, np.eye(1) * 4.0, rho=1.0, n_iter=1)
+    x, P = np.zeros(2), np.eye(2) * 10.0
+    for z in zs:
+        f.step(batched(lambda X: F @ X), z, batched(lambda X: X[:1]))
+        x, P = kf.predict(x, P, F, Q)
+        x, P, _, _ = kf.update(x, P, z, H, np.eye(1) * 4.0)
+    np.testing.assert_allclose(f.x, x, rtol=1e-4)    # R moves by ~1e-6 per epoch
+    np.testing.assert_allclose(f.P, P, rtol=1e-4)
+
+
+def test_vb_learns_the_true_measurement_noise():
+    """Nominal R = 1, true R = 4: the inverse-Gamma estimate finds it (seed 004 eq. 24)."""
+    F, Q, zs = _linear_problem(2, n=3000, r_true=4.0)
+    f = VBCKF(np.zeros(2), np.eye(2) * 10.0, Q, np.eye(1), rho=0.995, n_iter=5)
+    est = []
+    for z in zs:
+        f.step(batched(lambda X: F @ X), z, batched(lambda X: X[:1]))
+        est.append(f.R[0, 0])
+    assert np.mean(est[1000:]) == pytest.approx(4.0, rel=0.1)
+    assert est[10] < 2.0                               # it started from the nominal 1
+
+
+def test_hinf_posterior_is_the_information_form_and_gamma_keeps_it_definite():
+    rng = np.random.default_rng(3)
+    M = rng.standard_normal((5, 5))
+    P = M @ M.T + np.eye(5)
+    L = np.eye(5)[:2]
+    g2 = robust_gamma2(P, L, nu=2.0, C=1.5)
+    assert g2 == pytest.approx(4.0 * np.linalg.eigvalsh(L @ P @ L.T)[-1])
+    Ph = hinf_posterior(P, L, g2)
+    np.testing.assert_allclose(Ph, np.linalg.inv(np.linalg.inv(P) - L.T @ L / g2), rtol=1e-9)
+    assert np.linalg.eigvalsh(Ph - P).min() > -1e-12   # never more confident than the KF
+    # a large gamma is the Kalman filter
+    np.testing.assert_allclose(hinf_posterior(P, L, 1e14), P, rtol=1e-10)
+
+
+def test_vbch_with_a_huge_robust_factor_is_vbckf():
+    F, Q, zs = _linear_problem(4, n=50)
+    a = VBCKF(np.zeros(2), np.eye(2), Q, np.eye(1), rho=0.98, n_iter=5)
+    b = VBCH(np.zeros(2), np.eye(2), Q, np.eye(1), L=np.eye(2)[:1], rho=0.98, n_iter=5,
+             C=1e15)
+    for z in zs:
+        for f in (a, b):
+            f.step(batched(lambda X: F @ X), z, batched(lambda X: X[:1]))
+    np.testing.assert_allclose(b.x, a.x, rtol=1e-6)
+    np.testing.assert_allclose(b.P, a.P, rtol=1e-6)
+
+
+def test_vb_update_iterations_reach_a_fixed_point():
+    xp, Pp, H = np.zeros(2), np.diag([4.0, 1.0]), np.array([[1.0, 0.0]])
+    z, a, b = np.array([3.0]), np.array([5.0]), np.array([5.0])
+    x20, P20, _, b20, _, _ = vb_update(xp, Pp, z, H, a, b, 20)
+    x21, P21, _, b21, _, _ = vb_update(xp, Pp, z, H, a, b, 21)
+    np.testing.assert_allclose(x21, x20, rtol=1e-9)
+    np.testing.assert_allclose(b21, b20, rtol=1e-9)
+    assert b20[0] > b[0]                               # the residual raised the R estimate
+
+
+def test_student_t_scale_keeps_an_outlier_from_moving_the_state():
+    """A 30-sigma epoch: the plain VB update follows it; with the Student-t scale it is
+    down-weighted (lam << 1) and the state stays near the prediction."""
+    xp, Pp, H = np.zeros(2), np.diag([1.0, 1.0]), np.array([[1.0, 0.0]])
+    a, b = np.array([50.0]), np.array([50.0])           # R = 1
+    z = np.array([30.0])
+    x_plain, *_ = vb_update(xp, Pp, z, H, a, b, 20)
+    x_t, _, _, _, _, lam = vb_update(xp, Pp, z, H, a, b, 20, dof=5.0)
+    assert x_plain[0] > 3.0                              # R grew, but the state followed
+    assert lam < 0.05 and abs(x_t[0]) < 0.1 * x_plain[0]
+    # a normal epoch is hardly touched by the scale
+    x_n, *_ = vb_update(xp, Pp, np.array([1.0]), H, a, b, 20)
+    x_nt, _, _, _, _, lam_n = vb_update(xp, Pp, np.array([1.0]), H, a, b, 20, dof=5.0)
+    assert lam_n > 0.7 and x_nt[0] == pytest.approx(x_n[0], rel=0.05)
+
+
+@pytest.mark.parametrize('fine_filter', ['vbckf', 'vbch'])
+def test_pipeline_aligns_the_usv_in_severe_sea_with_outliers(fine_filter):
+    """seed004_high (severe sea, GNSS outliers, coarse first) through the whole pipeline:
+    the final attitude is within a few sigma of the truth and the diagnostics carry the
+    VB R estimate, the outlier counts and (VBCH) gamma."""
+    from sins_align_ros.align.pipeline import AlignmentPipeline, feed_arrays
+    from sins_align_ros.nav.frames import attitude_error, quat_to_dcm
+    from sins_align_ros.sim.presets import alignment_params, scenario
+    from sins_align_ros.sim.scenario import ScenarioStream
+    sc = scenario('seed004_high')
+    b = ScenarioStream(sc, seed=7).next_block(30000)
+    p = AlignmentPipeline(alignment_params(sc, fine_filter))
+    p.start_clock(0.0)
+    out = feed_arrays(p, b.imu, b.gnss, use_velocity=True)
+    phi = attitude_error(quat_to_dcm(out.q[-1]), euler_to_dcm(b.imu.euler[-1]))
+    sig = out.sigma[-1]                                 # rad
+    assert np.all(np.abs(phi) < 3.0 * sig + 1e-4), (phi / DEG, sig / DEG)
+    assert abs(phi[2]) < 1.0 * DEG and np.abs(phi[:2]).max() < 0.05 * DEG
+    st = p.status()
+    assert len(st['R_diag']) == 3 and st['gnss_outliers_judged'] >= 1
+    assert ('robust_gamma' in st) == (fine_filter == 'vbch')
