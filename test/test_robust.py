@@ -180,3 +180,29 @@ def test_pipeline_aligns_the_usv_in_severe_sea_with_outliers(fine_filter):
     st = p.status()
     assert len(st['R_diag']) == 3 and st['gnss_outliers_judged'] >= 1
     assert ('robust_gamma' in st) == (fine_filter == 'vbch')
+
+
+def test_robust_engine_feed_measures_gnss_velocity_and_reports_its_internals():
+    """RobustAlignment.feed on 120 s of the high-grade USV from 2/2/10 deg: the VBCH engine
+    pulls the misalignment in and its status carries R, gamma and the bias estimates."""
+    from sins_align_ros.align.robust import RobustAlignment
+    from sins_align_ros.nav.frames import attitude_error
+    from sins_align_ros.sim.presets import scenario
+    from sins_align_ros.sim.scenario import ScenarioStream
+    sc = scenario('seed004_high', duration=120.0)
+    sc.gnss = sc.gnss.with_(outlier_prob=0.0)
+    b = ScenarioStream(sc, seed=2).next_block(12000)
+    phi0 = np.array([2.0, 2.0, 10.0]) * DEG
+    P0 = np.diag(np.r_[phi0 ** 2, [0.01] * 3, [(0.02 * DPH) ** 2] * 3, [(50 * UG) ** 2] * 3])
+    Qc = np.r_[[(0.002 * DEG / 60) ** 2] * 3, [(10 * UG) ** 2] * 3, [0.0] * 6]
+    eng = RobustAlignment(lm.C_n_nprime(phi0) @ euler_to_dcm(b.imu.euler[0]), b.imu.v_n[0],
+                          *b.imu.pos[0], P0, Qc, np.eye(3) * 0.05 ** 2, robust=True, C=100.0)
+    eng.feed(b.imu, b.gnss, b.imu.t[0])
+    phi = attitude_error(eng.mech.C_b_n, euler_to_dcm(b.imu.euler[-1]))
+    sig = np.sqrt(np.diag(eng.attitude_cov()))
+    assert eng.n_updates >= 115
+    assert np.abs(phi[:2]).max() < 0.02 * DEG and abs(phi[2]) < 1.0 * DEG
+    assert np.all(np.abs(phi) < 3.0 * sig)
+    st = eng.status()
+    assert len(st['R_diag']) == 3 and st['robust_gamma'] > 0.0
+    assert len(st['accel_bias_ug']) == 3 and st['gnss_outliers_judged'] <= 2

@@ -177,9 +177,7 @@ class MovingBaseAlignment:
         """Mechanize one sample; returns the current ``C_b_n`` (3, 3)."""
         m = self.mech
         C = m.step(dtheta, dv, dt)
-        self._T += dt
-        self._dv_sum += m.dv_sf
-        self._v_sum += m.v_n * dt
+        self._accumulate(C, dt)
         if self._T >= MAX_PREDICT:
             fx = self._transition()
             self._set_process_noise()
@@ -187,6 +185,13 @@ class MovingBaseAlignment:
             self.n_predict_only += 1
             self._restart_interval()
         return C
+
+    def _accumulate(self, C, dt):
+        """Add one sample to the interval's sums (force, velocity) the transition uses."""
+        m = self.mech
+        self._T += dt
+        self._dv_sum += m.dv_sf
+        self._v_sum += m.v_n * dt
 
     def _set_process_noise(self):
         """Q of the interval since the last epoch; the adaptive filter keeps its estimate."""
@@ -348,9 +353,15 @@ class MovingBaseAlignment:
             self.step_imu(imu.dtheta[k], imu.dv[k], t - t_prev)
             t_prev = t
             while gi < len(gnss.t) and gnss.t[gi] <= t + 1e-9:
-                if gnss.t[gi] > t0:
-                    self.update(GnssFix(gnss.t[gi], gnss.lat[gi], gnss.lon[gi], gnss.h[gi]), t)
+                fix = self._gnss_fix(gnss, gi) if gnss.t[gi] > t0 else None
+                if fix is not None:
+                    self.update(fix, t)
                 gi += 1
+
+    @staticmethod
+    def _gnss_fix(gnss, i):
+        """Epoch ``i`` of the arrays given to :meth:`feed` as a :class:`GnssFix` (or None)."""
+        return GnssFix(gnss.t[i], gnss.lat[i], gnss.lon[i], gnss.h[i])
 
     # -- output -------------------------------------------------------------------------
     @property

@@ -23,7 +23,7 @@ from ..filters.vb import VBCH, VBCKF
 from ..models import large_misalignment as lm
 from ..nav import earth
 from ..nav.frames import orthonormalize
-from .moving import MAX_PREDICT, GnssFix, MovingBaseAlignment
+from .moving import GnssFix, MovingBaseAlignment
 
 
 class RobustAlignment(MovingBaseAlignment):
@@ -64,24 +64,10 @@ class RobustAlignment(MovingBaseAlignment):
         self.rows = np.array([3, 4, 5])
         self._C_sum = np.zeros((3, 3))
 
-    def step_imu(self, dtheta, dv, dt):
-        """Mechanize one sample; returns the current ``C_b_n`` (3, 3)."""
-        m = self.mech
-        C = m.step(dtheta, dv, dt)
-        self._T += dt
-        self._dv_sum += m.dv_sf
-        self._v_sum += m.v_n * dt
+    def _accumulate(self, C, dt):
+        """Also the mean attitude of the interval (the bias terms are linear in it)."""
+        super()._accumulate(C, dt)
         self._C_sum += C * dt
-        if self._T >= MAX_PREDICT:
-            fx = self._transition()
-            self._set_process_noise()
-            self.kf.predict(fx)
-            self.n_predict_only += 1
-            self._restart_interval()
-        return C
-
-    def _set_process_noise(self):
-        self.kf.Q = np.diag(self.Qc * max(self._T, 1e-3))
 
     def _restart_interval(self):
         super()._restart_interval()
@@ -128,18 +114,12 @@ class RobustAlignment(MovingBaseAlignment):
         m._pos_prev = m._pos_prev + (new - np.array([m.lat, m.lon, m.h]))
         m.lat, m.lon, m.h = (float(v) for v in new)
 
-    def feed(self, imu, gnss, t0):
-        """As :meth:`MovingBaseAlignment.feed`, with the fixes' ENU velocity ``gnss.v_n``."""
-        gi, t_prev = 0, t0
-        for k in range(1, len(imu.t)):
-            t = imu.t[k]
-            self.step_imu(imu.dtheta[k], imu.dv[k], t - t_prev)
-            t_prev = t
-            while gi < len(gnss.t) and gnss.t[gi] <= t + 1e-9:
-                if gnss.t[gi] > t0 and (not hasattr(gnss, 'fix') or gnss.fix[gi]):
-                    self.update(GnssFix(gnss.t[gi], gnss.lat[gi], gnss.lon[gi], gnss.h[gi],
-                                        gnss.v_n[gi]), t)
-                gi += 1
+    @staticmethod
+    def _gnss_fix(gnss, i):
+        """Epoch ``i`` with its ENU velocity ``gnss.v_n[i]``; None without a fix."""
+        if hasattr(gnss, 'fix') and not gnss.fix[i]:
+            return None
+        return GnssFix(gnss.t[i], gnss.lat[i], gnss.lon[i], gnss.h[i], gnss.v_n[i])
 
     def attitude_cov(self):
         """Misalignment covariance about ENU (3, 3), rad^2."""

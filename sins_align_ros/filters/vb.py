@@ -45,6 +45,7 @@ Where we differ from the box, and why:
 import numpy as np
 from scipy.stats import chi2
 
+from .asckf import CKF
 from .cubature import ckf_predict
 from .kf import nis
 
@@ -121,8 +122,10 @@ def vb_update(xp, Pp, z, H, alpha, beta, n_iter, L=None, C=None, var_max=None, d
     return x, P, alpha, beta, gamma2, lam
 
 
-class VBCKF:
+class VBCKF(CKF):
     """Seed 004's baseline (module docstring), with the cubature filters' interface.
+
+    The time update is :class:`~sins_align_ros.filters.asckf.CKF`'s (seed 004 eq. 16-17).
 
     Parameters
     ----------
@@ -178,15 +181,6 @@ class VBCKF:
     def gamma(self):
         """Robust factor of the last update (NaN for VBCKF)."""
         return float(np.sqrt(self.gamma2))
-
-    def transform(self, T):
-        """Change state coordinates: ``x <- T x``, ``P <- T P T^T``."""
-        self.x = T @ self.x
-        self.P = T @ self.P @ T.T
-
-    def predict(self, fx):
-        """Cubature time update only (seed 004 eq. 16-17)."""
-        self.x, self.P, _ = ckf_predict(self.x, self.P, fx, self.Q)
 
     def step(self, fx, z, hx, idx=None, max_nis=None):
         """Time update and VB measurement update.
