@@ -29,8 +29,9 @@ sys.path.insert(0, str(ROOT))
 
 from sins_align_ros.align.moving import FilterDiverged, GnssFix  # noqa: E402
 from sins_align_ros.align.pipeline import AlignmentPipeline, feed_arrays  # noqa: E402
-from sins_align_ros.align.robust import RobustAlignment  # noqa: E402
+from sins_align_ros.align.robust import RobustAlignment, model_noise  # noqa: E402
 from sins_align_ros.models import large_misalignment as lm  # noqa: E402
+from sins_align_ros.models.stationary import NoiseSpec  # noqa: E402
 from sins_align_ros.nav.frames import (DEG, attitude_error, euler_to_dcm,  # noqa: E402
                                        quat_to_dcm)
 from sins_align_ros.sim.imu import DPH, DPSH, UG  # noqa: E402
@@ -62,13 +63,13 @@ def simulate(sc, seed):
 def filter_model(sc, phi0):
     """P0, Qc and R of the 12-state model describing the scenario's sensors honestly."""
     s = sc.imu
-    gyro = max(np.max(np.abs(s.gyro_bias_dph)), 1e-3) * DPH
-    accel = max(np.hypot(np.max(np.abs(s.accel_bias_ug)), s.accel_markov_ug), 1.0) * UG
-    P0 = np.diag(np.r_[np.maximum(np.abs(phi0), DEG) ** 2, [0.1 ** 2] * 3,
-                       [np.hypot(gyro, s.gyro_markov_dph * DPH) ** 2] * 3, [accel ** 2] * 3])
+    noise = NoiseSpec(
+        gyro_bias=np.hypot(max(np.max(np.abs(s.gyro_bias_dph)), 1e-3), s.gyro_markov_dph) * DPH,
+        gyro_arw=s.gyro_arw_dpsh * DPSH,
+        accel_bias=np.hypot(np.max(np.abs(s.accel_bias_ug)), s.accel_markov_ug) * UG,
+        accel_vrw=s.accel_vrw_ug_rthz * UG)
     q_drift = 2.0 * (s.gyro_markov_dph * DPH) ** 2 / s.gyro_markov_tau_s
-    Qc = np.r_[[(s.gyro_arw_dpsh * DPSH) ** 2] * 3, [(s.accel_vrw_ug_rthz * UG) ** 2] * 3,
-               [q_drift] * 3, [0.0] * 3]
+    P0, Qc = model_noise(np.maximum(np.abs(phi0), DEG), 0.1, noise, q_drift)
     return P0, Qc, np.eye(3) * sc.gnss.vel_sigma ** 2
 
 

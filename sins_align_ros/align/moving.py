@@ -22,11 +22,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2
 
 from ..filters.asckf import ASCKF, CKF
 from ..filters.cubature import batched
-from ..filters.kf import nis
+from ..filters.kf import chi2_quantile, nis
 from ..models import large_azimuth as la
 from ..nav import earth
 from ..nav.frames import orthonormalize
@@ -72,7 +71,8 @@ class GnssFix:
 class MovingBaseAlignment:
     """Mechanization + seed 000 filter; see the module docstring.
 
-    ``i_phi``, ``i_v``: the misalignment and velocity-error slices of the state.
+    ``i_phi``, ``i_v``, ``i_eps``: the misalignment, velocity-error and gyro-drift slices
+    of the state.
 
     Parameters
     ----------
@@ -133,7 +133,9 @@ class MovingBaseAlignment:
         epochs in between, :meth:`update` raises :class:`FilterDiverged`.
     """
 
-    i_phi, i_v = I_PHI, I_V
+    i_phi, i_v, i_eps = I_PHI, I_V, I_EPS
+    #: measurement sizes whose gate thresholds the status reports
+    gate_sizes = (2, 4)
 
     def __init__(self, C_b_n, v_n, lat, lon, h, P0, Qc, R, use_velocity=False,
                  square_root=True, fading=True, adaptive=True, use_reported_cov=False,
@@ -165,7 +167,6 @@ class MovingBaseAlignment:
         self.last_nis = float('nan')
         self.gate_probability = gate_probability
         self.gate_max_rejects = int(gate_max_rejects)
-        self._thresholds = {}
         self.n_rejected = self.n_forced = 0
         self.consecutive_rejects = self._accepted_run = self._forced_run = 0
         self._y_rejected = None
@@ -302,11 +303,8 @@ class MovingBaseAlignment:
         return None
 
     def _threshold(self, m):
-        """Chi-square quantile of ``gate_probability`` for ``m`` measurements (cached)."""
-        thr = self._thresholds.get(m)
-        if thr is None:
-            thr = self._thresholds[m] = float(chi2.ppf(self.gate_probability, m))
-        return thr
+        """Chi-square quantile of ``gate_probability`` for ``m`` measurements."""
+        return chi2_quantile(self.gate_probability, m)
 
     def _feedback(self, fix):
         """Move the estimated errors into the mechanization (closed loop).
@@ -380,10 +378,10 @@ class MovingBaseAlignment:
              'innovation_nis': self.last_nis, 'divergence_test_fired': kf.divergence_flags,
              'Q_diag': [float(v) for v in np.diag(kf.Q)],
              'R_diag': [float(v) for v in np.diag(kf.R)],
-             'gyro_drift_dph': [float(v) for v in kf.x[I_EPS] / (math.pi / 180.0 / 3600.0)]}
+             'gyro_drift_dph': [float(v) for v in kf.x[self.i_eps] / (math.pi / 180.0 / 3600.0)]}
         if self.gate_probability is not None:
             s.update({'gnss_gate_probability': self.gate_probability,
-                      'gnss_gate_threshold': [self._threshold(m) for m in (2, 4)],
+                      'gnss_gate_threshold': [self._threshold(m) for m in self.gate_sizes],
                       'gnss_rejected': self.n_rejected, 'gnss_forced': self.n_forced,
                       'gnss_consecutive_rejects': self.consecutive_rejects})
         if getattr(kf, 'lam', None) is not None:

@@ -36,7 +36,7 @@ from . import params as prm
 from .gnss_input import reported_variances
 from .moving import FilterDiverged, GnssFix, MovingBaseAlignment
 from .preprocess import Preprocessor
-from .robust import RobustAlignment
+from .robust import RobustAlignment, model_noise
 from ..filters import kf
 from ..models.stationary import NoiseSpec, StationaryModel
 from ..nav import coarse, earth
@@ -622,8 +622,8 @@ class AlignmentPipeline:
                     gate_max_rejects=cfg['gnss_gate_max_rejects'])
         drift0 = max(nz.gyro_bias, 1e-3 * _DPH) ** 2
         if cfg['fine_filter'] in prm.ROBUST_FILTERS:
-            self.engine = self._robust_engine(C, v_end, lat, lon, h, sigma, s_v, drift0,
-                                              q_drift, gate)
+            self.engine = self._robust_engine(C, v_end, lat, lon, h, sigma, s_v, q_drift,
+                                              gate)
         else:
             s_p = cfg['gnss_pos_sigma_m']
             P0 = np.diag(np.r_[[s_v ** 2] * 2, [s_p ** 2] * 2, sigma ** 2, [drift0] * 3])
@@ -655,12 +655,10 @@ class AlignmentPipeline:
         # fixes that came in during coarse alignment are history, not measurements
         self._pending.clear()
 
-    def _robust_engine(self, C, v_n, lat, lon, h, sigma, s_v, drift0, q_drift, gate):
+    def _robust_engine(self, C, v_n, lat, lon, h, sigma, s_v, q_drift, gate):
         """Seed 004's VBCKF / VBCH engine (12 states, GNSS velocity measured)."""
-        cfg, nz = self.cfg, self.noise
-        P0 = np.diag(np.r_[sigma ** 2, [s_v ** 2] * 3, [drift0] * 3,
-                           [max(nz.accel_bias, 1e-6 * earth.G0) ** 2] * 3])
-        Qc = np.r_[[nz.gyro_arw ** 2] * 3, [nz.accel_vrw ** 2] * 3, [q_drift] * 3, [0.0] * 3]
+        cfg = self.cfg
+        P0, Qc = model_noise(sigma, s_v, self.noise, q_drift)
         R = np.eye(3) * cfg['gnss_vel_sigma_mps'] ** 2
         if not self._vels:
             self.warnings.append(f"{cfg['fine_filter']} measures the GNSS velocity: no "

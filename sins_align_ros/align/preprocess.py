@@ -108,13 +108,7 @@ class Preprocessor:
             outs.append((np.array(self._t[:1]), np.array(self._inc[:1])))
             self._start = 1
         while len(self._t) - self._start >= half + self.hop:
-            lo = max(0, self._start - half)
-            hi = self._start + self.hop + half
-            seg = self._run(lo, min(hi, len(self._t)))
-            a = self._start - lo
-            outs.append((np.array(self._t[self._start:self._start + self.hop]),
-                         seg[a - 1:a - 1 + self.hop]))
-            self._start += self.hop
+            outs.append(self._emit(self.hop, self._start + self.hop + half))
             drop = max(0, self._start - half - 1)
             if drop:
                 del self._t[:drop]
@@ -125,15 +119,18 @@ class Preprocessor:
     def flush(self):
         """Output the samples still waiting (their windows reach past the data's end)."""
         outs = []
-        half = self.window // 2
         while self._start is not None and self._start < len(self._t):
-            lo = max(0, self._start - half)
-            seg = self._run(lo, len(self._t))
-            a = self._start - lo
-            k = min(self.hop, len(self._t) - self._start)
-            outs.append((np.array(self._t[self._start:self._start + k]), seg[a - 1:a - 1 + k]))
-            self._start += k
+            outs.append(self._emit(min(self.hop, len(self._t) - self._start), len(self._t)))
         return self._stack(outs)
+
+    def _emit(self, k, hi):
+        """Output the next ``k`` samples, denoised in the window ending before buffer ``hi``."""
+        lo = max(0, self._start - self.window // 2)
+        seg = self._run(lo, hi)
+        a = self._start - lo
+        out = (np.array(self._t[self._start:self._start + k]), seg[a - 1:a - 1 + k])
+        self._start += k
+        return out
 
     def _run(self, lo, hi):
         """Denoised increments of buffer samples lo+1..hi-1, at the input rate, (hi-lo-1, 6)."""

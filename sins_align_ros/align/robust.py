@@ -26,6 +26,22 @@ from ..nav.frames import orthonormalize
 from .moving import GnssFix, MovingBaseAlignment
 
 
+def model_noise(sigma_phi, sigma_v, noise, q_drift):
+    """P0 (12, 12) and Qc (12,) of the 12-state model for sensors ``noise``.
+
+    ``sigma_phi`` (3,) initial misalignment sigma (rad), ``sigma_v`` velocity sigma (m/s),
+    ``noise`` a :class:`~sins_align_ros.models.stationary.NoiseSpec` (SI units; its
+    gyro bias includes the Gauss-Markov part), ``q_drift`` the drift random walk
+    density (rad^2/s^3). Bias sigmas have floors of 1e-3 deg/h and 1 micro-g.
+    """
+    P0 = np.diag(np.r_[np.asarray(sigma_phi) ** 2, [sigma_v ** 2] * 3,
+                       [max(noise.gyro_bias, 1e-3 * math.pi / 180 / 3600) ** 2] * 3,
+                       [max(noise.accel_bias, 1e-6 * earth.G0) ** 2] * 3])
+    Qc = np.r_[[noise.gyro_arw ** 2] * 3, [noise.accel_vrw ** 2] * 3, [q_drift] * 3,
+               [0.0] * 3]
+    return P0, Qc
+
+
 class RobustAlignment(MovingBaseAlignment):
     """Mechanization + seed 004 filter; see the module docstring.
 
@@ -48,7 +64,8 @@ class RobustAlignment(MovingBaseAlignment):
         As :class:`~sins_align_ros.align.moving.MovingBaseAlignment` (None: no gate).
     """
 
-    i_phi, i_v = lm.I_PHI, lm.I_V
+    i_phi, i_v, i_eps = lm.I_PHI, lm.I_V, lm.I_EPS
+    gate_sizes = (3,)
 
     def __init__(self, C_b_n, v_n, lat, lon, h, P0, Qc, R, robust=True, rho=0.98,
                  n_iter=20, C=1.5, dof=None, gate_probability=None, gate_max_rejects=10):
@@ -126,17 +143,12 @@ class RobustAlignment(MovingBaseAlignment):
         return self.kf.P[lm.I_PHI, lm.I_PHI]
 
     def status(self):
-        """Filter internals for diagnostics (plain Python types)."""
+        """Filter internals for diagnostics: the seed 000 engine's, plus the VB ones."""
         kf = self.kf
-        s = {'filter_updates': self.n_updates, 'predict_only_epochs': self.n_predict_only,
-             'innovation_nis': self.last_nis, 'gnss_outliers_judged': int(kf.n_outliers),
-             'gnss_downweighted': int(kf.n_downweighted), 'noise_scale': float(kf.lam_t),
-             'R_diag': [float(v) for v in np.diag(kf.R)],
-             'gyro_drift_dph': [float(v) for v in kf.x[lm.I_EPS] / (math.pi / 180 / 3600)],
-             'accel_bias_ug': [float(v) for v in kf.x[lm.I_NAB] / (earth.G0 * 1e-6)]}
+        s = super().status()
+        s.update({'gnss_outliers_judged': int(kf.n_outliers),
+                  'gnss_downweighted': int(kf.n_downweighted), 'noise_scale': float(kf.lam_t),
+                  'accel_bias_ug': [float(v) for v in kf.x[lm.I_NAB] / (earth.G0 * 1e-6)]})
         if kf.robust:
             s['robust_gamma'] = kf.gamma
-        if self.gate_probability is not None:
-            s.update({'gnss_gate_probability': self.gate_probability,
-                      'gnss_rejected': self.n_rejected, 'gnss_forced': self.n_forced})
         return s

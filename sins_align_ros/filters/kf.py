@@ -3,8 +3,11 @@
 Shapes: ``x`` (n,), ``P`` (n, n), ``F`` (n, n), ``Q`` (n, n), ``z`` (m,),
 ``H`` (m, n), ``R`` (m, m). Returned arrays are new objects.
 """
+from functools import lru_cache
+
 import numpy as np
 from scipy.linalg import expm
+from scipy.stats import chi2
 
 
 def predict(x, P, F, Q):
@@ -55,3 +58,9 @@ def discretize(F, G, Qc, dt):
 def nis(y, S):
     """Normalised innovation squared ``y^T S^-1 y`` (chi-square with m dof when consistent)."""
     return float(y @ np.linalg.solve(S, y))
+
+
+@lru_cache(maxsize=None)
+def chi2_quantile(probability, dof):
+    """Chi-square quantile of ``probability`` for ``dof`` degrees of freedom (cached)."""
+    return float(chi2.ppf(probability, dof))

@@ -43,11 +43,10 @@ Where we differ from the box, and why:
   ``beta0 = alpha0 R0``: the nominal R counts as one memory's worth of measurements.
 """
 import numpy as np
-from scipy.stats import chi2
 
 from .asckf import CKF
 from .cubature import ckf_predict
-from .kf import nis
+from .kf import chi2_quantile, nis
 
 #: probability above which an epoch's innovation is counted as an outlier (diagnostics)
 OUTLIER_PROBABILITY = 0.999
@@ -137,45 +136,37 @@ class VBCKF(CKF):
         Forgetting factor in (0, 1].
     n_iter : int
         Variational iterations per epoch (seed 004: N = 20).
-    L, C
-        H-infinity auxiliary output (p, n) and robust-factor constant (VBCH only).
-    cap_at_p0 : bool
-        VBCH: no posterior variance above its P0 (module docstring).
     dof : float or None
         Student-t outlier scale's degrees of freedom (None or inf: off, the seed).
     """
 
-    robust = False
-
-    def __init__(self, x0, P0, Q, R, rho=0.98, n_iter=20, L=None, C=1.5, cap_at_p0=True,
-                 dof=None):
+    def __init__(self, x0, P0, Q, R, rho=0.98, n_iter=20, dof=None):
+        self.rho = float(rho)
+        self.alpha = np.full(len(R), 0.5 / max(1.0 - self.rho, 1e-6))
+        super().__init__(x0, P0, Q, R)            # x, P, Q, R (-> beta), bookkeeping
+        self.n_iter = int(n_iter)
         self.dof = None if dof is None or not np.isfinite(dof) else float(dof)
+        self.L = self.C = self.var_max = None         # VBCH's
+        self.gamma2 = np.nan
         self.lam_t = 1.0
         self.n_downweighted = 0
-        self.x = np.array(x0, dtype=float)
-        self.P = np.array(P0, dtype=float)
-        self.var_max = np.diag(self.P).copy() if cap_at_p0 else None
-        self.Q = np.array(Q, dtype=float)
-        R0 = np.diag(np.asarray(R, dtype=float)).copy()
-        self.rho = float(rho)
-        self.n_iter = int(n_iter)
-        self.alpha = np.full(len(R0), 0.5 / max(1.0 - self.rho, 1e-6))
-        self.beta = self.alpha * R0
-        self.L = None if L is None else np.asarray(L, dtype=float)
-        self.C = float(C)
-        self.gamma2 = np.nan
-        self.lam = None
-        self.divergence_flags = 0
         self.n_outliers = 0
-        self.last = None
         self.last_nis = np.nan
-        self.rejected = False
-        self._outlier_thr = {}
+
+    @property
+    def robust(self):
+        """Whether the H-infinity posterior is used (VBCH)."""
+        return self.L is not None
 
     @property
     def R(self):
         """Current estimate of the measurement noise covariance (m, m)."""
         return np.diag(self.beta / self.alpha)
+
+    @R.setter
+    def R(self, value):
+        """Set the estimate to the diagonal of ``value`` (the prior's weight is kept)."""
+        self.beta = self.alpha * np.diag(np.asarray(value, dtype=float))
 
     @property
     def gamma(self):
@@ -190,7 +181,7 @@ class VBCKF(CKF):
         vector present in ``z`` (their alpha/beta are used and updated). ``max_nis``:
         reject the epoch (prediction kept, noise estimate untouched) if its normalised
         innovation squared under the current R estimate exceeds it.
-        Returns the innovation ``y`` of the prediction.
+        Returns the prior innovation and its covariance (``y``, ``Pzz``).
         """
         n = len(self.x)
         m_all = len(self.alpha)
@@ -201,7 +192,7 @@ class VBCKF(CKF):
         y = z - H @ xp
         S = H @ Pp @ H.T + np.diag(b_pred / a_pred)
         self.last_nis = nis(y, S)
-        if self.last_nis > self._threshold(len(idx)):
+        if self.last_nis > chi2_quantile(OUTLIER_PROBABILITY, len(idx)):
             self.n_outliers += 1
         self.rejected = max_nis is not None and self.last_nis > max_nis
         self.last = _Innovation(y, S)
@@ -209,8 +200,8 @@ class VBCKF(CKF):
             self.x, self.P = xp, Pp
             return self.last
         x, P, a, b, g2, lam = vb_update(xp, Pp, z, H, a_pred, b_pred, self.n_iter,
-                                        L=self.L if self.robust else None, C=self.C,
-                                        var_max=self.var_max, dof=self.dof)
+                                        L=self.L, C=self.C, var_max=self.var_max,
+                                        dof=self.dof)
         self.x, self.P = x, P
         self.alpha[idx], self.beta[idx] = a, b
         self.gamma2, self.lam_t = g2, lam
@@ -218,24 +209,19 @@ class VBCKF(CKF):
             self.n_downweighted += 1
         return self.last
 
-    def _threshold(self, m):
-        thr = self._outlier_thr.get(m)
-        if thr is None:
-            thr = self._outlier_thr[m] = float(chi2.ppf(OUTLIER_PROBABILITY, m))
-        return thr
-
 
 class VBCH(VBCKF):
     """Seed 004's variational-Bayes cubature H-infinity filter (module docstring).
 
-    As :class:`VBCKF`; ``L`` (p, n) is required.
+    As :class:`VBCKF`, plus ``L`` (p, n) the H-infinity auxiliary output, ``C`` the
+    robust-factor constant and ``cap_at_p0`` (no posterior variance above its P0).
     """
 
-    robust = True
-
     def __init__(self, x0, P0, Q, R, L, rho=0.98, n_iter=20, C=1.5, cap_at_p0=True, dof=None):
-        super().__init__(x0, P0, Q, R, rho=rho, n_iter=n_iter, L=L, C=C, cap_at_p0=cap_at_p0,
-                         dof=dof)
+        super().__init__(x0, P0, Q, R, rho=rho, n_iter=n_iter, dof=dof)
+        self.L = np.asarray(L, dtype=float)
+        self.C = float(C)
+        self.var_max = np.diag(self.P).copy() if cap_at_p0 else None
 
 
 class _Innovation:
