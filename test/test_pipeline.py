@@ -128,7 +128,9 @@ def test_mems_gyro_is_reported_unable_to_gyrocompass():
 
 def test_invalid_parameters_are_refused():
     with pytest.raises(ValueError, match='fine_filter'):
-        AlignmentPipeline({'fine_filter': 'mvbakf'})
+        AlignmentPipeline({'fine_filter': 'magic'})
+    with pytest.raises(ValueError, match='mvbakf_moment'):
+        AlignmentPipeline({'mvbakf_moment': 'median'})
     with pytest.raises(ValueError, match='outside'):
         AlignmentPipeline({'coarse_duration': -1.0})
     with pytest.raises(ValueError, match='unknown parameter'):

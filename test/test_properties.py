@@ -70,7 +70,7 @@ def _run(events, fine_filter):
     return outs, p
 
 
-@pytest.mark.parametrize('fine_filter', ['reduced7', 'asckf'])
+@pytest.mark.parametrize('fine_filter', ['reduced7', 'asckf', 'mvbakf', 'ukf'])
 @settings(max_examples=40, deadline=None, derandomize=True,
           phases=[Phase.explicit, Phase.reuse, Phase.generate],
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
@@ -83,9 +83,12 @@ def test_random_message_sequences_never_raise_and_attitudes_stay_valid(fine_filt
         assert np.all(np.isfinite(q))
         np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-9)
         assert np.all(np.isfinite(out.P_phi[have]))
+        if out.nav is not None:                        # navigation rows: finite or all NaN
+            nav = out.nav[~np.isnan(out.nav[:, 0])]
+            assert np.all(np.isfinite(nav))
 
 
-@pytest.mark.parametrize('fine_filter', ['reduced7', 'asckf'])
+@pytest.mark.parametrize('fine_filter', ['reduced7', 'asckf', 'mvbakf', 'ukf'])
 def test_the_harness_reaches_fine_alignment_on_good_input(fine_filter):
     """The random sequences above are as long as this one: the fine phase is exercised."""
     lat = math.radians(30.0)

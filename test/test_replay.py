@@ -148,6 +148,35 @@ def test_moving_base_bag_with_gnss_velocity_replays_like_the_node(tmp_path):
     assert final_row(out_csv)[0]['phase'] in ('fine', 'aligned')
 
 
+@pytest.mark.slow
+def test_navigation_filter_replay_writes_position_and_velocity(tmp_path):
+    """fine_filter mvbakf on a bag of seed 003's car: the CSV carries the navigation
+    solution (latitude, longitude, height, ENU velocity) near the truth once fine."""
+    from sins_align_ros.io.results import NAV_COLUMNS
+    from sins_align_ros.nav import earth
+    sc = scenario('seed003_car', duration=150.0)
+    bag = write_scenario_bag(tmp_path / 'car', sc, seed=5, start_time=START)
+    out_csv = tmp_path / 'car.csv'
+    assert replay([str(bag), '--set', 'fine_filter=mvbakf', '--set', 'gyro_bias_dph=200.0',
+                   '--set', 'gyro_arw_dpsh=3.0', '--set', 'accel_bias_ug=5000.0',
+                   '--set', 'accel_vrw_ug_rthz=350.0', '--set', 'gnss_pos_sigma_m=10.0',
+                   '--set', 'gnss_height_sigma_m=5.0', '--out', str(out_csv), '--quiet']) == 0
+    last, cols = final_row(out_csv)
+    assert tuple(cols)[:len(COLUMNS)] == COLUMNS and set(NAV_COLUMNS) <= set(cols)
+    assert np.isnan(cols['lat_deg'][0]) and last['phase'] in ('fine', 'aligned')
+    truth = ScenarioStream(sc, seed=5).next_block(15000).imu
+    d = earth.local_offset_m(*truth.pos[-1], np.radians([last['lat_deg']]),
+                             np.radians([last['lon_deg']]), np.array([last['h_m']]))[0]
+    assert np.all(np.abs(d) < [10.0, 10.0, 10.0])
+    v = np.array([last['ve_mps'], last['vn_mps'], last['vu_mps']])
+    assert np.all(np.abs(v - truth.v_n[-1]) < 0.3)
+    # an alignment-only filter keeps the contract's columns alone
+    out2 = tmp_path / 'a.csv'
+    assert replay([str(bag), '--set', 'fine_filter=asckf', '--duration', '70', '--out',
+                   str(out2), '--quiet']) == 0
+    assert tuple(read_csv(out2)) == COLUMNS
+
+
 def _write_imu_bag(path, samples, garbage_at_end=False):
     """A rosbag2 of IMU messages ``(stamp_ns, w_b, f_b)``, optionally then one of garbage."""
     from rosbags.rosbag2 import Writer

@@ -8,14 +8,17 @@ from dataclasses import dataclass
 import yaml
 
 FINE_FILTERS = ('reduced7', 'stationary10', 'stationary12', 'ckf', 'asckf', 'ukf',
-                'vbakf', 'mvbakf', 'vbckf', 'vbch')
-#: fine filters implemented in this version
-AVAILABLE_FINE_FILTERS = ('reduced7', 'stationary10', 'stationary12', 'ckf', 'asckf',
-                          'vbckf', 'vbch')
-#: fine filters for a moving base with GNSS aiding (seed 000; vbckf/vbch: seed 004)
-MOVING_FILTERS = ('ckf', 'asckf', 'vbckf', 'vbch')
+                'vbakf', 'mvbakf', 'vbckf', 'vbch', 'kf')
+#: fine filters implemented in this version (all of DESIGN.md's, and ``kf``)
+AVAILABLE_FINE_FILTERS = FINE_FILTERS
 #: the moving-base filters on seed 004's 12-state model (GNSS velocity measurement)
 ROBUST_FILTERS = ('vbckf', 'vbch')
+#: the integrated-navigation filters (seed 001's 15 states, seed 003's 18-state UKF): they
+#: align and then go on navigating
+NAV_FILTERS = ('kf', 'vbakf', 'mvbakf', 'ukf')
+#: fine filters for a moving base with GNSS aiding (seed 000; vbckf/vbch: seed 004; the
+#: navigation filters)
+MOVING_FILTERS = ('ckf', 'asckf') + ROBUST_FILTERS + NAV_FILTERS
 COARSE_METHODS = ('auto', 'analytic', 'inertial_frame')
 PREPROCESS_WAVELETS = ('sym8', 'sym4', 'db4', 'db8', 'coif2')
 
@@ -104,6 +107,25 @@ ALIGNMENT_PARAMS = (
     Param('vb_outlier_dof', 5.0, 'vbckf/vbch: degrees of freedom of the Student-t scale that '
           'down-weights outlier epochs (0: off, the seed\'s plain inverse-Gamma R)',
           0.0, 1000.0),
+    Param('continue_navigation', True, 'kf/vbakf/mvbakf/ukf: go on navigating after '
+          'alignment: the node publishes ~/odom (nav_msgs/Odometry, ENU) at IMU rate and the '
+          'replay CSV gets position/velocity columns'),
+    Param('nav_forgetting', 0.95, 'vbakf/mvbakf: forgetting factor rho of the variational-'
+          'Bayes R estimate (seed 001 sec. 3.2: 0.95)', 0.5, 0.9999),
+    Param('nav_iterations', 5, 'vbakf/mvbakf: fixed-point iterations N per GNSS epoch (seed '
+          '001: N = 5)', 1, 100),
+    Param('mvbakf_tau', 6.0, 'mvbakf: tuning factor tau of the inverse-Wishart prior of '
+          'P(k|k-1) (seed 001 eq. 9-10; its Fig. 2 uses 6)', 0.0, 1e6),
+    Param('mvbakf_moment', 'mean', 'mvbakf: posterior moment of P(k|k-1) and R used in the '
+          'update: mean (seed 001 eq. 24, 30 as printed) or inverse (E[P^-1]^-1, the '
+          'variational derivation\'s; see README)', choices=('mean', 'inverse')),
+    Param('nav_q_scale', 1.0, 'kf/vbakf/mvbakf/ukf: factor on the process noise Q the '
+          'sensor parameters give (seed 001 runs its filters with 9)', 0.01, 1e4),
+    Param('accel_bias_tau_s', 3600.0, 'kf/vbakf/mvbakf/ukf: correlation time of the '
+          'first-order Markov accelerometer error (seed 001 eq. 2, seed 003 eq. 25), s',
+          1.0, 1e7),
+    Param('gnss_height_sigma_m', 2.0, 'GNSS height noise, 1 sigma, m (kf/vbakf/mvbakf/ukf '
+          'measure the height)', 0.001, 1000.0),
     Param('preprocess', False, 'IMU pre-processing before alignment (seed 004 Fig. 1): '
           'resampling with the increments preserved, wavelet threshold denoising, delay '
           'compensated by keeping each sample\'s stamp (output latency about '
@@ -153,9 +175,6 @@ def validate(values):
         if err:
             raise ValueError(err)
         out[k] = float(v) if isinstance(p.default, float) else v
-    if out.get('fine_filter', 'reduced7') not in AVAILABLE_FINE_FILTERS:
-        raise ValueError(f"fine_filter={out['fine_filter']!r} is not available in this version "
-                         f"(available: {', '.join(AVAILABLE_FINE_FILTERS)})")
     return out
 
 

@@ -35,6 +35,7 @@ import numpy as np
 from . import params as prm
 from .gnss_input import reported_variances
 from .moving import FilterDiverged, GnssFix, MovingBaseAlignment
+from .navigation import IntegratedNavigation, model_noise as nav_model_noise
 from .preprocess import Preprocessor
 from .robust import RobustAlignment, model_noise
 from ..filters import kf
@@ -69,7 +70,9 @@ class Output:
     (NaN while unknown); ``euler`` (N, 3) REP-103 roll, pitch, yaw (rad);
     ``sigma`` (N, 3) 1-sigma of those angles (rad); ``P_phi`` (N, 3, 3)
     covariance of the misalignment about the ENU axes (rad^2); ``phase`` (N,)
-    phase names.
+    phase names; ``nav`` (N, 6) or None: the navigation solution of the navigation
+    filters (``kf``, ``vbakf``, ``mvbakf``, ``ukf``) at each sample, latitude and
+    longitude (rad), height (m), ENU velocity (m/s); NaN where there is none.
     """
 
     t: np.ndarray
@@ -78,6 +81,7 @@ class Output:
     sigma: np.ndarray
     P_phi: np.ndarray
     phase: np.ndarray
+    nav: np.ndarray = None
 
     @staticmethod
     def concat(parts):
@@ -87,8 +91,12 @@ class Output:
             return Output.empty()
         if len(parts) == 1:
             return parts[0]
-        return Output(*(np.concatenate([getattr(p, f) for p in parts])
-                        for f in ('t', 'q', 'euler', 'sigma', 'P_phi', 'phase')))
+        out = Output(*(np.concatenate([getattr(p, f) for p in parts])
+                       for f in ('t', 'q', 'euler', 'sigma', 'P_phi', 'phase')))
+        if any(p.nav is not None for p in parts):
+            out.nav = np.concatenate([p.nav if p.nav is not None
+                                      else np.full((len(p.t), 6), np.nan) for p in parts])
+        return out
 
     @staticmethod
     def empty():
@@ -101,12 +109,15 @@ class Output:
 
 
 class _Rows:
-    """Fine-phase rows before conversion: attitudes (N, 3, 3) and one covariance."""
+    """Fine-phase rows before conversion.
 
-    __slots__ = ('t', 'C', 'P_phi', 'phase')
+    Attitudes (N, 3, 3), one covariance, and the navigation solution (N, 6) or None.
+    """
 
-    def __init__(self, t, C, P_phi, phase):
-        self.t, self.C, self.P_phi, self.phase = t, C, P_phi, phase
+    __slots__ = ('t', 'C', 'P_phi', 'phase', 'nav')
+
+    def __init__(self, t, C, P_phi, phase, nav=None):
+        self.t, self.C, self.P_phi, self.phase, self.nav = t, C, P_phi, phase, nav
 
     def output(self):
         return _assemble([self])
@@ -126,7 +137,11 @@ def _assemble(parts):
         eul = dcm_to_euler(C)
         P_e = euler_cov_from_phi_cov(eul, P)
         sig = np.sqrt(np.clip(np.diagonal(P_e, axis1=1, axis2=2), 0.0, None))
-        done.append(Output(t, dcm_to_quat(C), eul, sig, P, ph))
+        nav = None
+        if any(r.nav is not None for r in run):
+            nav = np.concatenate([r.nav if r.nav is not None
+                                  else np.full((len(r.t), 6), np.nan) for r in run])
+        done.append(Output(t, dcm_to_quat(C), eul, sig, P, ph, nav))
         run.clear()
 
     for p in parts:
@@ -381,9 +396,13 @@ class AlignmentPipeline:
                 C = self.mech.C_b_n
         P = self.attitude_cov()
         eul = dcm_to_euler(C)
+        nav = None
+        if self.navigating:
+            m = self.mech
+            nav = np.array([[m.lat, m.lon, m.h, m.v_n[0], m.v_n[1], m.v_n[2]]])
         return Output(np.array([t]), dcm_to_quat(C)[None], eul[None],
                       euler_sigma_one(eul, P.tolist())[None], P[None],
-                      np.array([self.phase], dtype=object))
+                      np.array([self.phase], dtype=object), nav)
 
     def widen(self, var_phi, var_v=0.0):
         """Widen the fine filter's covariance by an error the input may have left.
@@ -484,8 +503,10 @@ class AlignmentPipeline:
         filter diverged and the pipeline went back to coarse alignment.
         """
         eng = self.engine
+        m = eng.mech
         n = len(t)
         Cs = np.empty((n, 3, 3))
+        nav = np.empty((n, 6)) if self.navigating else None
         parts, start = [], 0
         for k in range(n):
             tk = t[k]
@@ -493,15 +514,22 @@ class AlignmentPipeline:
             self.t_last = tk
             if self._pending and self._pending[0][0] <= tk + 1e-9:
                 if k > start:
-                    parts.append(_Rows(t[start:k], Cs[start:k], self.attitude_cov(), self.phase))
+                    parts.append(_Rows(t[start:k], Cs[start:k], self.attitude_cov(), self.phase,
+                                       None if nav is None else nav[start:k]))
                     start = k
                 self._apply_pending(tk)
-                Cs[k] = eng.mech.C_b_n
+                Cs[k] = m.C_b_n
                 if self.engine is not eng:             # diverged: restarted from coarse
-                    parts.append(_Rows(t[start:k + 1], Cs[start:k + 1],
-                                       eng.attitude_cov(), FINE))
+                    if nav is not None:
+                        nav[k] = np.nan
+                    parts.append(_Rows(t[start:k + 1], Cs[start:k + 1], eng.attitude_cov(),
+                                       FINE, None if nav is None else nav[start:k + 1]))
                     return _assemble(parts), k + 1
-        parts.append(_Rows(t[start:], Cs[start:], self.attitude_cov(), self.phase))
+            if nav is not None:
+                v = m.v_n
+                nav[k] = (m.lat, m.lon, m.h, v[0], v[1], v[2])
+        parts.append(_Rows(t[start:], Cs[start:], self.attitude_cov(), self.phase,
+                           None if nav is None else nav[start:]))
         return _assemble(parts), n
 
     def _apply_pending(self, t_now):
@@ -624,6 +652,8 @@ class AlignmentPipeline:
         if cfg['fine_filter'] in prm.ROBUST_FILTERS:
             self.engine = self._robust_engine(C, v_end, lat, lon, h, sigma, s_v, q_drift,
                                               gate)
+        elif cfg['fine_filter'] in prm.NAV_FILTERS:
+            self.engine = self._nav_engine(C, v_end, lat, lon, h, sigma, s_v, gate)
         else:
             s_p = cfg['gnss_pos_sigma_m']
             P0 = np.diag(np.r_[[s_v ** 2] * 2, [s_p ** 2] * 2, sigma ** 2, [drift0] * 3])
@@ -647,8 +677,8 @@ class AlignmentPipeline:
         # the 10-state model has no accelerometer bias: the tilt it leaves (bias / g)
         # is added at the output, as for the stationary models' attitude floor (the
         # 12-state model of vbckf/vbch estimates the bias itself)
-        tilt_floor = 0.0 if isinstance(self.engine, RobustAlignment) else (
-            nz.accel_bias / earth.gravity(lat, h)) ** 2
+        tilt_floor = 0.0 if isinstance(self.engine, (RobustAlignment, IntegratedNavigation)) \
+            else (nz.accel_bias / earth.gravity(lat, h)) ** 2
         self.floor = np.array([tilt_floor, tilt_floor, 0.0])
         self._sig_hist.clear()
         self.P = self.engine.P
@@ -667,6 +697,39 @@ class AlignmentPipeline:
                                robust=cfg['fine_filter'] == 'vbch', rho=cfg['vb_forgetting'],
                                n_iter=cfg['vb_iterations'], C=cfg['vbch_c'],
                                dof=cfg['vb_outlier_dof'] or None, **gate)
+
+    def _nav_engine(self, C, v_n, lat, lon, h, sigma, s_v, gate):
+        """Seed 001's 15-state (kf, vbakf, mvbakf) or seed 003's 18-state (ukf) engine."""
+        cfg = self.cfg
+        ff = cfg['fine_filter']
+        n = 18 if ff == 'ukf' else 15
+        gyro = (cfg['gyro_bias_dph'] * _DPH, cfg['gyro_bias_instability_dph'] * _DPH)
+        accel = (cfg['accel_bias_ug'] * _UG, 0.0)
+        P0, Qc = nav_model_noise(n, sigma, s_v, max(cfg['gnss_pos_sigma_m'],
+                                                    cfg['gnss_height_sigma_m']),
+                                 gyro, accel, self.noise.gyro_arw, self.noise.accel_vrw,
+                                 cfg['gyro_bias_tau_s'], cfg['accel_bias_tau_s'],
+                                 q_scale=cfg['nav_q_scale'])
+        R = np.diag([cfg['gnss_pos_sigma_m'] ** 2] * 2 + [cfg['gnss_height_sigma_m'] ** 2]
+                    + [cfg['gnss_vel_sigma_mps'] ** 2] * 3)
+        return IntegratedNavigation(
+            C, v_n, lat, lon, h, P0, Qc, R, method=ff, tau_g=cfg['gyro_bias_tau_s'],
+            tau_a=cfg['accel_bias_tau_s'], rho=cfg['nav_forgetting'],
+            n_iter=cfg['nav_iterations'], tau=cfg['mvbakf_tau'],
+            moment=cfg['mvbakf_moment'],
+            use_velocity=cfg['use_gnss_velocity'], **gate)
+
+    @property
+    def navigating(self):
+        """Tell whether a navigation filter runs and ``continue_navigation`` wants its output."""
+        return isinstance(self.engine, IntegratedNavigation) and self.cfg['continue_navigation']
+
+    def nav_cov(self):
+        """Covariance (9, 9) of position, velocity and misalignment errors, or None.
+
+        :meth:`~sins_align_ros.align.navigation.IntegratedNavigation.nav_cov`.
+        """
+        return self.engine.nav_cov() if isinstance(self.engine, IntegratedNavigation) else None
 
     def _coarse_sigma(self, T, lat, moving, cap=30.0 * DEG):
         """Conservative 1-sigma misalignment (rad) after coarse alignment over T seconds."""
@@ -888,13 +951,15 @@ def _steady_velocity(V, v_sig):
     return bool(np.mean(np.sum(dev * dev, axis=1)) < 2.0 * (2.0 * v_sig * v_sig))
 
 
-def feed_arrays(p, imu, gnss, use_velocity=True, block=100):
+def feed_arrays(p, imu, gnss, use_velocity=True, block=100, callback=None):
     """Feed whole recorded or simulated arrays to pipeline ``p`` in time order.
 
     ``imu`` has ``t``, ``dtheta``, ``dv`` (N, ...); ``gnss`` has ``t``, ``lat``,
     ``lon`` (rad), ``h``, ``v_n`` (M, 3), ``fix`` (M,) bool and ``pos_cov``/``vel_cov``
     (ENU variances), or is None. GNSS epochs are given before the IMU block that
-    passes their stamps, as a live node would receive them. Returns the :class:`Output`.
+    passes their stamps, as a live node would receive them. ``callback(p)``, if given,
+    is called after each block (e.g. to record filter internals). Returns the
+    :class:`Output`.
     """
     outs, gi = [], 0
     n = len(imu.t)
@@ -910,5 +975,7 @@ def feed_arrays(p, imu, gnss, use_velocity=True, block=100):
                                    vel_var=np.asarray(gnss.vel_cov)[:2])
             gi += 1
         outs.append(p.feed(imu.t[i:j], imu.dtheta[i:j], imu.dv[i:j]))
+        if callback is not None:
+            callback(p)
     outs.append(p.flush())
     return Output.concat(outs)

@@ -1,11 +1,12 @@
 """Unscented Kalman filter with scaled (van der Merwe) sigma points.
 
 Generic, like :mod:`sins_align_ros.filters.cubature`: ``fx(x)`` and ``hx(x)`` act on
-one state. Shapes as there. Seed 003 uses the UKF for its 18-state model.
+one state, or on all points at once if marked :func:`~.cubature.batched`. Shapes as
+there. Seed 003 uses the UKF for its 18-state model.
 """
 import numpy as np
 
-from .cubature import chol_lower
+from .cubature import _propagate, chol_lower
 
 
 def merwe_weights(n, alpha=1e-3, beta=2.0, kappa=0.0):
@@ -29,7 +30,7 @@ def ukf_predict(x, P, fx, Q, alpha=1e-3, beta=2.0, kappa=0.0):
     """UKF time update; returns ``(x_pred, P_pred, X_prop)``."""
     lam, Wm, Wc = merwe_weights(len(x), alpha, beta, kappa)
     X = sigma_points(x, P, lam)
-    Xp = np.column_stack([fx(X[:, i]) for i in range(X.shape[1])])
+    Xp = _propagate(fx, X)
     xp = Xp @ Wm
     D = Xp - xp[:, None]
     Pp = (D * Wc) @ D.T + Q
@@ -47,7 +48,7 @@ def ukf_update(x, P, z, hx, R, points=None, alpha=1e-3, beta=2.0, kappa=0.0):
     lam, Wm, Wc = merwe_weights(len(x), alpha, beta, kappa)
     if points is None:
         points = sigma_points(x, P, lam)
-    Z = np.column_stack([hx(points[:, i]) for i in range(points.shape[1])])
+    Z = _propagate(hx, points)
     zp = Z @ Wm
     Dz = Z - zp[:, None]
     Dx = points - x[:, None]

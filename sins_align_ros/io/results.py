@@ -2,8 +2,11 @@
 
 Columns: ``t,qx,qy,qz,qw,roll_deg,pitch_deg,yaw_deg,sigma_roll_deg,sigma_pitch_deg,
 sigma_yaw_deg,phase`` followed by ``heading_deg`` (navigation heading, clockwise
-from north, for people). One row per output epoch; the last row is the final
-result. Unknown values (waiting/coarse phases) are written as ``nan``.
+from north, for people) and, when a navigation filter ran with
+``continue_navigation`` (``kf``, ``vbakf``, ``mvbakf``, ``ukf``), :data:`NAV_COLUMNS`:
+latitude, longitude (deg), height (m) and ENU velocity (m/s). One row per output
+epoch; the last row is the final result. Unknown values (waiting/coarse phases) are
+written as ``nan``.
 """
 import csv
 
@@ -13,6 +16,7 @@ from ..nav.frames import yaw_to_heading
 
 COLUMNS = ('t', 'qx', 'qy', 'qz', 'qw', 'roll_deg', 'pitch_deg', 'yaw_deg',
            'sigma_roll_deg', 'sigma_pitch_deg', 'sigma_yaw_deg', 'phase', 'heading_deg')
+NAV_COLUMNS = ('lat_deg', 'lon_deg', 'h_m', 've_mps', 'vn_mps', 'vu_mps')
 
 
 def write_csv(path, out, every=1):
@@ -27,14 +31,22 @@ def write_csv(path, out, every=1):
     eul = np.degrees(out.euler[idx])
     sig = np.degrees(out.sigma[idx])
     head = np.degrees(yaw_to_heading(out.euler[idx, 2]))
+    nav = None
+    if out.nav is not None:
+        nav = out.nav[idx].copy()
+        nav[:, :2] = np.degrees(nav[:, :2])
     with open(path, 'w', newline='') as f:
         w = csv.writer(f)
-        w.writerow(COLUMNS)
+        w.writerow(COLUMNS + (NAV_COLUMNS if nav is not None else ()))
         for r, k in enumerate(idx):
             q = out.q[k]
-            w.writerow([f'{out.t[k]:.9f}', *(f'{v:.12f}' for v in q),
-                        *(f'{v:.9f}' for v in eul[r]), *(f'{v:.9f}' for v in sig[r]),
-                        out.phase[k], f'{head[r]:.9f}'])
+            row = [f'{out.t[k]:.9f}', *(f'{v:.12f}' for v in q),
+                   *(f'{v:.9f}' for v in eul[r]), *(f'{v:.9f}' for v in sig[r]),
+                   out.phase[k], f'{head[r]:.9f}']
+            if nav is not None:
+                row += [f'{nav[r, 0]:.10f}', f'{nav[r, 1]:.10f}',
+                        *(f'{v:.4f}' for v in nav[r, 2:])]
+            w.writerow(row)
 
 
 def read_csv(path):

@@ -14,7 +14,16 @@ same objects the replay tool uses — and produces:
   about the ENU axes (rad^2); until coarse alignment is done the orientation is
   marked unknown (``orientation_covariance[0] = -1``, REP-145);
 * ``~/euler`` (geometry_msgs/Vector3Stamped): REP-103 roll, pitch, yaw in rad;
-* ``/diagnostics`` (diagnostic_msgs/DiagnosticArray, status ``<node>: alignment``).
+* ``/diagnostics`` (diagnostic_msgs/DiagnosticArray, status ``<node>: alignment``);
+* ``~/odom`` (nav_msgs/Odometry) with the navigation filters (``kf``, ``vbakf``,
+  ``mvbakf``, ``ukf``) and ``continue_navigation``: the GNSS/INS solution at every
+  IMU sample from the start of fine alignment on, through ``aligned`` and after.
+  Pose in ``odom_frame_id``: an ENU frame whose origin is the position where fine
+  alignment started (``odom_origin_*`` in the diagnostics), orientation body -> ENU;
+  twist in the IMU's frame (``child_frame_id``): body-axis velocity and the
+  bias-corrected angular rate. Covariances from the filter: position and attitude
+  (about the fixed ENU axes) with their cross terms; the body velocity's from the
+  velocity and attitude errors; the rate's from the gyro noise.
 
 Bad input (the rules are in the two input modules) is skipped or bridged,
 counted by reason in the diagnostics' values, logged at most once per
@@ -35,6 +44,7 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
 from geometry_msgs.msg import TwistWithCovarianceStamped, Vector3Stamped
+from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, NavSatFix
@@ -47,10 +57,14 @@ from ..align import params as prm
 from ..align.gnss_input import GnssInput
 from ..align.imu_input import OK, RESET, SKIP, START, ImuInput
 from ..align.pipeline import COARSE, WAITING, AlignmentPipeline
+from ..nav import earth
+from ..nav.frames import quat_to_dcm, skew
 
 NODE_PARAMS = (
     Param('imu_frame_id', '', 'expected frame_id of imu/data_raw (empty: accept any)'),
     Param('diagnostic_period', 1.0, 'period of /diagnostics, s', 0.05, 60.0),
+    Param('odom_frame_id', 'odom', 'frame_id of ~/odom: ENU axes, origin where fine '
+          'alignment started'),
 )
 PARAMS = prm.ALIGNMENT_PARAMS + NODE_PARAMS
 _ALIGN_NAMES = {p.name for p in prm.ALIGNMENT_PARAMS}
@@ -88,6 +102,8 @@ class AlignmentNode(Node):
         self.pub_imu = self.create_publisher(Imu, 'imu/data', 50)
         self.pub_euler = self.create_publisher(Vector3Stamped, '~/euler', 50)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self.pub_odom = self.create_publisher(Odometry, '~/odom', 50)
+        self._odom_origin = None          # (lat, lon, h) of the ENU origin of ~/odom
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.counts = {'imu': 0}
         #: messages received per topic (before any check)
@@ -123,6 +139,7 @@ class AlignmentNode(Node):
     def _restart(self, reason, level='info', restart_clock=True):
         """Start a new pipeline with the current parameters (keeping the last GNSS fix)."""
         old = self.pipeline
+        self._odom_origin = None
         self.pipeline = AlignmentPipeline(self._align_values)
         self.pipeline.inherit_gnss(old)
         if restart_clock:
@@ -209,12 +226,17 @@ class AlignmentNode(Node):
             out = self.pipeline.feed(t, dth, dv)
             if self.pipeline.pre is None:
                 self._publish(msg, out)
+                if out.nav is not None:
+                    self._publish_odom(msg, out, np.array([w.x, w.y, w.z]))
             else:
                 self._recent.append((t, msg))
                 for k, t_k in enumerate(out.t):        # each finished sample, its own header
                     while len(self._recent) > 1 and self._recent[0][0] < t_k - 1e-9:
                         self._recent.popleft()
                     self._publish(self._recent[0][1], out, k)
+                if out.nav is not None and len(out.t):
+                    w = self._recent[0][1].angular_velocity
+                    self._publish_odom(self._recent[0][1], out, np.array([w.x, w.y, w.z]))
         elif action == START:
             self.pipeline.start_clock(t)
         elif action == RESET:
@@ -240,6 +262,47 @@ class AlignmentNode(Node):
         else:
             m.orientation_covariance[0] = -1.0
         self.pub_imu.publish(m)
+
+    def _publish_odom(self, msg, out, w_b):
+        """``~/odom`` for the last row of ``out`` (see the module docstring).
+
+        ``w_b`` (3,): the sample's body angular rate, rad/s (before bias correction).
+        """
+        nav = out.nav[-1]
+        q = out.q[-1]
+        if not (np.all(np.isfinite(nav)) and np.isfinite(q[0])):
+            return
+        lat, lon, h = nav[:3]
+        if self._odom_origin is None:
+            self._odom_origin = (float(lat), float(lon), float(h))
+        e, n, u = earth.local_offset_m(*self._odom_origin, np.array([lat]), np.array([lon]),
+                                       np.array([h]))[0]
+        C = quat_to_dcm(q)
+        o = Odometry()
+        o.header.stamp = msg.header.stamp
+        o.header.frame_id = self.p['odom_frame_id']
+        o.child_frame_id = msg.header.frame_id
+        o.pose.pose.position.x, o.pose.pose.position.y, o.pose.pose.position.z = (
+            float(e), float(n), float(u))
+        o.pose.pose.orientation.x, o.pose.pose.orientation.y, o.pose.pose.orientation.z, \
+            o.pose.pose.orientation.w = (float(v) for v in q)
+        P_nav = self.pipeline.nav_cov()         # position, velocity, misalignment (9, 9)
+        ip = np.r_[0:3, 6:9]
+        o.pose.covariance = [float(v) for v in P_nav[np.ix_(ip, ip)].ravel()]
+        v_b = C.T @ nav[3:]
+        o.twist.twist.linear.x, o.twist.twist.linear.y, o.twist.twist.linear.z = (
+            float(v) for v in v_b)
+        w = np.asarray(w_b, dtype=float) - self.pipeline.engine.gyro_bias
+        o.twist.twist.angular.x, o.twist.twist.angular.y, o.twist.twist.angular.z = (
+            float(v) for v in w)
+        # v_b = C~^T v~ = v_b + C^T dV - C^T [v x] phi (C~ = (I - [phi x]) C)
+        J = np.hstack([C.T, -C.T @ skew(nav[3:])])
+        twist_cov = np.zeros((6, 6))
+        twist_cov[:3, :3] = J @ P_nav[3:, 3:] @ J.T
+        dt = self.input.dt_nominal or 0.01
+        twist_cov[3:, 3:] = np.eye(3) * (self.pipeline.noise.gyro_arw ** 2 / dt)
+        o.twist.covariance = [float(v) for v in twist_cov.ravel()]
+        self.pub_odom.publish(o)
 
     # -- diagnostics -----------------------------------------------------------------
     def _publish_diagnostics(self):
@@ -290,6 +353,11 @@ class AlignmentNode(Node):
         values.update({f'gnss_input_{k}': v for k, v in self.gnss.counts.items()})
         values.update({f'{k}_count': v for k, v in self.counts.items()})
         values['imu_rejected_count'] = self.input.rejected
+        if self._odom_origin is not None:
+            lat, lon, h = self._odom_origin          # full precision (1e-9 deg ~ 0.1 mm)
+            values.update({'odom_origin_lat_deg': f'{np.degrees(lat):.9f}',
+                           'odom_origin_lon_deg': f'{np.degrees(lon):.9f}',
+                           'odom_origin_h_m': f'{h:.3f}'})
         values['gnss_rejected_count'] = self.gnss.rejected
         st.values = [KeyValue(key=k, value=_fmt(v)) for k, v in values.items()]
         arr = DiagnosticArray()

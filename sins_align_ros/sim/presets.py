@@ -300,6 +300,7 @@ def alignment_params(sc, fine_filter, **overrides):
     if sc.gnss is not None:
         out['gnss_pos_sigma_m'] = float(sc.gnss.pos_sigma_h)
         out['gnss_vel_sigma_mps'] = float(sc.gnss.vel_sigma)
+        out['gnss_height_sigma_m'] = float(sc.gnss.pos_sigma_v)
     out.update(sc.extra.get('alignment', {}))
     out.update(overrides)
     return out

@@ -1,0 +1,252 @@
+"""GNSS/INS integrated navigation that aligns and then keeps navigating (seeds 001, 003).
+
+The full strapdown mechanization runs at IMU rate on increments corrected by the
+current sensor-error estimates; at every GNSS epoch the loosely coupled error model
+(:mod:`~sins_align_ros.models.loosely_coupled`: 15 states of seed 001 for ``kf``,
+``vbakf`` and ``mvbakf``, 18 states of seed 003 for ``ukf``) is propagated over the
+interval at the interval's mean specific force, velocity and attitude, updated with
+INS minus GNSS position (and velocity when the epoch has one), and the whole
+estimate is fed back (seed 003 sec. 4: feedback correction every filter cycle):
+attitude, velocity and position into the mechanization, the gyro and accelerometer
+errors into the sensor compensation. The error state is zero after each epoch; the
+Markov parts of the compensation decay with their correlation time, as the expected
+value of a first-order Markov process does, so the residual error keeps the model's
+dynamics.
+
+The GNSS bookkeeping (intervals without a fix, the innovation gate with forced
+acceptances) is :class:`~sins_align_ros.align.moving.MovingBaseAlignment`'s. The
+navigation solution is the mechanization's at every IMU sample (100 Hz at a 100 Hz
+IMU, seed 003's output rate).
+"""
+import math
+
+import numpy as np
+
+from ..filters.cubature import batched
+from ..filters.vbakf import KF, MVBAKF, UKF, VBAKF, linear
+from ..models import large_misalignment as lm
+from ..models import loosely_coupled as lc
+from ..nav import earth
+from ..nav.frames import orthonormalize, rotvec_to_dcm
+from .moving import GnssFix, MovingBaseAlignment
+
+#: the navigation filters by ``fine_filter`` name
+NAV_FILTERS = ('kf', 'vbakf', 'mvbakf', 'ukf')
+
+
+def model_noise(n_states, sigma_phi, sigma_v, sigma_p, gyro, accel, gyro_arw, accel_vrw,
+                tau_g, tau_a, q_scale=1.0):
+    """P0 (n, n) and Qc (n,) of the 15- or 18-state model.
+
+    ``sigma_phi`` (3,) rad, ``sigma_v`` m/s, ``sigma_p`` m: initial navigation errors.
+    ``gyro``, ``accel``: ``(constant sigma, Markov sigma)`` of the sensor errors (rad/s,
+    m/s^2); the 15-state model has one Markov state per sensor whose steady sigma is
+    their root sum square (seed 001's first-order Markov errors), the 18-state model
+    a random constant and a Markov state for the gyro (seed 003 eq. 23-24) and a Markov
+    accelerometer error of the total sigma (eq. 25). ``gyro_arw`` rad/sqrt(s),
+    ``accel_vrw`` m/s/sqrt(s). ``q_scale`` multiplies Qc (seed 001 runs its filters
+    with Q nine times the truth). Sigmas have floors of 1e-3 deg/h and 1 micro-g (a
+    zero variance makes the sigma points degenerate).
+    """
+    g_floor, a_floor = 1e-3 * math.pi / 180 / 3600, 1e-6 * earth.G0
+    s_a = max(math.hypot(*accel), a_floor)
+    q_a = lc.markov_q(s_a, tau_a)
+    if n_states == 15:
+        s_g = max(math.hypot(*gyro), g_floor)
+        bias_var = [s_g ** 2] * 3 + [s_a ** 2] * 3
+        q_bias = [lc.markov_q(s_g, tau_g)] * 3 + [q_a] * 3
+    else:
+        s_gb, s_gr = max(gyro[0], g_floor), max(gyro[1], g_floor)
+        bias_var = [s_gb ** 2] * 3 + [s_gr ** 2] * 3 + [s_a ** 2] * 3
+        q_bias = [0.0] * 3 + [lc.markov_q(s_gr, tau_g)] * 3 + [q_a] * 3
+    P0 = np.diag(np.r_[np.asarray(sigma_phi, float) ** 2, [sigma_v ** 2] * 3,
+                       [sigma_p ** 2] * 3, bias_var])
+    Qc = q_scale * np.r_[[gyro_arw ** 2] * 3, [accel_vrw ** 2] * 3, [0.0] * 3, q_bias]
+    return P0, Qc
+
+
+class IntegratedNavigation(MovingBaseAlignment):
+    """Mechanization + seed 001/003 filter; see the module docstring.
+
+    Parameters
+    ----------
+    C_b_n, v_n, lat, lon, h
+        Initial attitude (body FLU -> ENU), ENU velocity (m/s), position (rad, rad, m).
+    P0 : ndarray (n, n)
+    Qc : ndarray (n,)
+        Continuous-time noise densities; the discrete Q of an interval T is
+        ``(Phi diag(Qc) Phi^T + diag(Qc)) T / 2``.
+    R : ndarray (6, 6)
+        Measurement noise, position E, N, U (m^2) then velocity E, N, U ((m/s)^2).
+    method : str
+        One of :data:`NAV_FILTERS`.
+    tau_g, tau_a : float
+        Correlation times of the Markov gyro and accelerometer errors, s.
+    rho, n_iter, tau, moment
+        VB forgetting factor, fixed-point iterations, MVBAKF's P(k|k-1) tuning factor and
+        posterior moment (:class:`~sins_align_ros.filters.vbakf.MVBAKF`).
+    use_velocity : bool
+        Measure GNSS velocity when the epoch has one.
+    gate_probability, gate_max_rejects
+        As :class:`~sins_align_ros.align.moving.MovingBaseAlignment` (None: no gate).
+    """
+
+    i_phi, i_v = lc.I_PHI, lc.I_V
+    gate_sizes = (3, 6)
+
+    def __init__(self, C_b_n, v_n, lat, lon, h, P0, Qc, R, method='mvbakf', tau_g=300.0,
+                 tau_a=3600.0, rho=0.95, n_iter=5, tau=6.0, moment='mean', use_velocity=True,
+                 gate_probability=None, gate_max_rejects=10):
+        if method not in NAV_FILTERS:
+            raise ValueError(f'unknown navigation filter {method!r}')
+        super().__init__(C_b_n, v_n, lat, lon, h, P0, Qc, R, use_velocity=use_velocity,
+                         square_root=False, gate_probability=gate_probability,
+                         gate_max_rejects=gate_max_rejects)
+        self.method = method
+        self.n = len(P0)
+        self.tau_g, self.tau_a = float(tau_g), float(tau_a)
+        x0 = np.zeros(self.n)
+        Q = np.diag(self.Qc)
+        if method == 'kf':
+            self.kf = KF(x0, P0, Q, R)
+        elif method == 'vbakf':
+            self.kf = VBAKF(x0, P0, Q, R, rho=rho, n_iter=n_iter)
+        elif method == 'mvbakf':
+            self.kf = MVBAKF(x0, P0, Q, R, tau=tau, rho=rho, n_iter=n_iter, moment=moment)
+        else:
+            self.kf = UKF(x0, P0, Q, R)
+        self.i_eps = lc.I_EPS15 if self.n == 15 else lc.I_EPSB
+        self.rows = lc.MEAS_STATES
+        #: sensor compensation: gyro constant, gyro Markov, accelerometer (body, SI)
+        self.eps_const = np.zeros(3)
+        self.eps_markov = np.zeros(3)
+        self.nab = np.zeros(3)
+        self._C_sum = np.zeros((3, 3))
+        self._F = None
+
+    # -- IMU rate ---------------------------------------------------------------------
+    def step_imu(self, dtheta, dv, dt):
+        """Mechanize one sample corrected by the sensor-error estimates; returns ``C_b_n``."""
+        return super().step_imu(dtheta - (self.eps_const + self.eps_markov) * dt,
+                                dv - self.nab * dt, dt)
+
+    def _accumulate(self, C, dt):
+        super()._accumulate(C, dt)
+        self._C_sum += C * dt
+
+    def _restart_interval(self):
+        """Start a new interval; the Markov compensation decays over the one that ended."""
+        T = self._T
+        if T > 0.0:
+            self.eps_markov *= math.exp(-T / self.tau_g)
+            self.nab *= math.exp(-T / self.tau_a)
+        super()._restart_interval()
+        self._C_sum = np.zeros((3, 3))
+
+    def _transition(self):
+        T = self._T
+        if T <= 0.0:
+            self._F = np.zeros((self.n, self.n))
+            return linear(np.eye(self.n))
+        f_n, v_n, C = self._dv_sum / T, self._v_sum / T, self._C_sum / T
+        C = orthonormalize(C)
+        m = self.mech
+        self._F = lc.F_matrix(C, f_n, v_n, m.lat, m.h, self.tau_g, self.tau_a, self.n)
+        if self.method == 'ukf':
+            sub = max(1, int(math.ceil(T / 1.0)))
+            args = (f_n, v_n, C, m.lat, m.h, self.tau_g, self.tau_a, T)
+            return batched(lambda X: lc.propagate18(X, *args, substeps=sub))
+        return linear(lc.transition(self._F, T))
+
+    def _set_process_noise(self):
+        """Q of the interval: trapezoid of ``Phi Qc Phi^T`` and ``Qc`` over its length T."""
+        T = max(self._T, 1e-3)
+        Qc = np.diag(self.Qc)
+        Phi = lc.transition(self._F, T) if self._F is not None else np.eye(self.n)
+        Q = 0.5 * (Phi @ Qc @ Phi.T + Qc) * T
+        self.kf.Q = 0.5 * (Q + Q.T)
+
+    # -- GNSS epochs --------------------------------------------------------------------
+    def measurement(self, fix, t_now):
+        """INS minus GNSS position (m, ENU) and, when present, velocity (m/s, ENU).
+
+        The INS position is moved back to the fix stamp with the current velocity.
+        Returns ``(z, idx)`` with ``idx`` the rows of the full 6-vector present.
+        """
+        m = self.mech
+        back = max(0.0, t_now - fix.t)
+        R_M, R_N = earth.radii(m.lat)
+        lat = m.lat - m.v_n[1] * back / (R_M + m.h)
+        lon = m.lon - m.v_n[0] * back / ((R_N + m.h) * math.cos(m.lat))
+        h = m.h - m.v_n[2] * back
+        z = [(lon - fix.lon) * (R_N + m.h) * math.cos(m.lat), (lat - fix.lat) * (R_M + m.h),
+             h - fix.h]
+        idx = [0, 1, 2]
+        if self.use_velocity and fix.v_n is not None:
+            z += list(m.v_n - np.asarray(fix.v_n, dtype=float))
+            idx += [3, 4, 5]
+        return np.array(z), np.array(idx)
+
+    def _feedback(self, fix):
+        """Feed the whole estimate back (module docstring); the error state becomes zero."""
+        m, kf = self.mech, self.kf
+        x = kf.x
+        if self.method == 'ukf':
+            m.C_b_n = orthonormalize(lm.C_n_nprime(x[lc.I_PHI]).T @ m.C_b_n)
+        else:
+            m.C_b_n = orthonormalize(rotvec_to_dcm(x[lc.I_PHI]) @ m.C_b_n)
+        dv = x[lc.I_V].copy()
+        m.v_n = m.v_n - dv
+        m._v_prev = m._v_prev - dv
+        R_M, R_N = earth.radii(m.lat)
+        dpos = np.array([x[7] / (R_M + m.h), x[6] / ((R_N + m.h) * math.cos(m.lat)), x[8]])
+        m.lat -= dpos[0]
+        m.lon -= dpos[1]
+        m.h -= dpos[2]
+        m._pos_prev = m._pos_prev - dpos
+        if self.n == 15:
+            self.eps_markov += x[lc.I_EPS15]
+            self.nab += x[lc.I_NAB15]
+        else:
+            self.eps_const += x[lc.I_EPSB]
+            self.eps_markov += x[lc.I_EPSR]
+            self.nab += x[lc.I_NAB18]
+        kf.x = np.zeros(self.n)
+
+    @staticmethod
+    def _gnss_fix(gnss, i):
+        """Epoch ``i`` (with its velocity when the arrays have one); None without a fix."""
+        if hasattr(gnss, 'fix') and not gnss.fix[i]:
+            return None
+        v = gnss.v_n[i] if hasattr(gnss, 'v_n') else None
+        return GnssFix(gnss.t[i], gnss.lat[i], gnss.lon[i], gnss.h[i], v)
+
+    # -- output -------------------------------------------------------------------------
+    def attitude_cov(self):
+        """Misalignment covariance about ENU (3, 3), rad^2."""
+        return self.kf.P[lc.I_PHI, lc.I_PHI]
+
+    def nav_cov(self):
+        """Return the covariance (9, 9) of position, velocity and misalignment errors.
+
+        Position in m and velocity in m/s (ENU), misalignment in rad about the ENU axes,
+        in that order, with their cross terms.
+        """
+        i = np.r_[6:9, 3:6, 0:3]
+        return self.kf.P[np.ix_(i, i)]
+
+    @property
+    def gyro_bias(self):
+        """Current gyro-error compensation, body axes, rad/s (3,)."""
+        return self.eps_const + self.eps_markov
+
+    def status(self):
+        """Filter internals for diagnostics: the base ones plus the sensor estimates."""
+        s = super().status()
+        dph = math.pi / 180.0 / 3600.0
+        s['gyro_drift_dph'] = [float(v) for v in self.gyro_bias / dph]
+        s['accel_bias_ug'] = [float(v) for v in self.nab / (earth.G0 * 1e-6)]
+        s['R_sigma'] = [float(v) for v in np.sqrt(np.diag(self.kf.R))]
+        if isinstance(self.kf, MVBAKF):
+            s['P_pred_trace_ratio'] = self.kf.p_ratio
+        return s

@@ -1,0 +1,201 @@
+"""Loosely coupled GNSS/INS error models: seed 001's 15 states and seed 003's 18 states.
+
+Errors are computed minus true, in this package's conventions: ENU navigation frame,
+FLU body, misalignment ``phi`` with ``C~_b_n = (I - [phi x]) C_b_n`` (the seeds use
+RFU bodies: the sensor-error states are body-axis vectors, a fixed relabelling).
+
+15 states (seed 001 eq. 2)::
+
+    x = [phi_E phi_N phi_U | dV_E dV_N dV_U | dp_E dp_N dp_U | eps_x eps_y eps_z |
+         nab_x nab_y nab_z]
+
+18 states (seed 003 eq. 28): the same with the gyro error split into a random constant
+``eps_b`` and a first-order Markov part ``eps_r``::
+
+    x = [phi | dV | dp | eps_b | eps_r | nab]
+
+Position error in metres east, north, up (``dp_E = (R_N + h) cos L dlambda``,
+``dp_N = (R_M + h) dL``, ``dp_U = dh``) instead of the seeds' ``(dL, dlambda, dh)`` in
+radians: the same model under the diagonal change of variables :func:`D_pos` (then
+the position measurement is a plain difference in metres and the covariance is well
+conditioned). The transition of the Markov states over an interval is exact;
+the rest is the classical phi-angle model (seed 001 eq. 1 with Qin, *Inertial
+navigation*, ch. 4; seed 003 eq. 16-22)::
+
+    phi' = -w_in x phi + dw_in - C_b_n eps
+    dV'  = f_n x phi - (2 w_ie + w_en) x dV + V x (2 dw_ie + dw_en) + dg + C_b_n nab
+    dp'  = dV + (transport terms)
+    eps_r' = -eps_r / tau_g + w_g,   nab' = -nab / tau_a + w_a   (seed 001 eq. 2, seed 003
+                                                                 eq. 23-25)
+
+Seed 003 also models the receiver's position and velocity errors as Markov
+processes (eq. 26-27) but its state (eq. 28) has 18 entries: they enter here as the
+measurement noise R (a receiver's errors over a 1 s epoch are close to white).
+
+For the unscented filter of seed 003 :func:`derivative18` keeps the attitude and
+velocity equations nonlinear in ``phi`` (the large-misalignment form of
+:mod:`.large_misalignment`, seed 004 eq. 3), so a heading error of tens of degrees
+after coarse alignment is propagated without linearisation error; its Jacobian at
+zero is :func:`F_matrix` (tested).
+
+Measurement (seed 001 sec. 1, seed 003 eq. 30-36): ``z = [p_INS - p_GNSS (m, ENU),
+v_INS - v_GNSS (m/s, ENU)] = H x + v`` with ``H`` selecting ``dp`` and ``dV``.
+"""
+import math
+
+import numpy as np
+
+from . import large_misalignment as lm
+from ..nav import earth
+from ..nav.frames import skew
+
+I_PHI, I_V, I_P = slice(0, 3), slice(3, 6), slice(6, 9)
+#: 15 states: gyro (Markov) and accelerometer (Markov) errors
+I_EPS15, I_NAB15 = slice(9, 12), slice(12, 15)
+#: 18 states: constant gyro drift, Markov gyro drift, Markov accelerometer error
+I_EPSB, I_EPSR, I_NAB18 = slice(9, 12), slice(12, 15), slice(15, 18)
+LABELS15 = ('phiE', 'phiN', 'phiU', 'dVE', 'dVN', 'dVU', 'dpE', 'dpN', 'dpU',
+            'epsx', 'epsy', 'epsz', 'nabx', 'naby', 'nabz')
+LABELS18 = LABELS15[:9] + ('epsbx', 'epsby', 'epsbz', 'epsrx', 'epsry', 'epsrz',
+                           'nabx', 'naby', 'nabz')
+#: measurement rows in the state: position E, N, U then velocity E, N, U
+MEAS_STATES = np.array([6, 7, 8, 3, 4, 5])
+
+
+def D_pos(lat, h):
+    """``(3, 3)`` mapping the seeds' ``(dL, dlambda, dh)`` to our ``(dp_E, dp_N, dp_U)`` in m."""
+    R_M, R_N = earth.radii(lat)
+    return np.array([[0.0, (R_N + h) * math.cos(lat), 0.0],
+                     [R_M + h, 0.0, 0.0],
+                     [0.0, 0.0, 1.0]])
+
+
+def _blocks(f_n, v_n, lat, h):
+    """Return the navigation blocks of the phi-angle model in the seeds' position variables.
+
+    Returns ``Maa, Mav, Map, Mva, Mvv, Mvp, Mpv, Mpp`` (each (3, 3)), position columns
+    and rows in ``(dL, dlambda, dh)``.
+    """
+    R_M, R_N = earth.radii(lat)
+    Rm, Rn = R_M + h, R_N + h
+    vE, vN = v_n[0], v_n[1]
+    sL, cL = math.sin(lat), math.cos(lat)
+    tL, secL = sL / cL, 1.0 / cL
+    W = earth.OMEGA_IE
+    w_ie = np.array([0.0, W * cL, W * sL])
+    w_en = np.array([-vN / Rm, vE / Rn, vE * tL / Rn])
+    # d(w_en)/d(dV), d(w_ie)/d(p), d(w_en)/d(p)
+    Mav = np.array([[0.0, -1.0 / Rm, 0.0], [1.0 / Rn, 0.0, 0.0], [tL / Rn, 0.0, 0.0]])
+    M1 = np.array([[0.0, 0.0, 0.0], [-W * sL, 0.0, 0.0], [W * cL, 0.0, 0.0]])
+    M2 = np.array([[0.0, 0.0, vN / Rm ** 2], [0.0, 0.0, -vE / Rn ** 2],
+                   [vE * secL ** 2 / Rn, 0.0, -vE * tL / Rn ** 2]])
+    Maa = -skew(w_ie + w_en)
+    Map = M1 + M2
+    Vx = skew(v_n)
+    Mva = skew(f_n)
+    Mvv = Vx @ Mav - skew(2.0 * w_ie + w_en)
+    Mvp = Vx @ (2.0 * M1 + M2)
+    # normal gravity falls with height: the computed vertical acceleration gains 2 g / R dh
+    Mvp[2, 2] += 2.0 * earth.gravity(lat, h) / math.sqrt(R_M * R_N)
+    Mpv = np.array([[0.0, 1.0 / Rm, 0.0], [secL / Rn, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    Mpp = np.array([[0.0, 0.0, -vN / Rm ** 2], [vE * secL * tL / Rn, 0.0, -vE * secL / Rn ** 2],
+                    [0.0, 0.0, 0.0]])
+    return Maa, Mav, Map, Mva, Mvv, Mvp, Mpv, Mpp
+
+
+def F_matrix(C_b_n, f_n, v_n, lat, h, tau_g, tau_a, n_states=15):
+    """Continuous-time system matrix (n, n) (seed 001 eq. 1-2; seed 003 eq. 29).
+
+    ``C_b_n`` (3, 3) attitude, ``f_n`` (3,) specific force in ENU, ``v_n`` (3,) ENU
+    velocity, ``lat`` (rad), ``h`` (m); ``tau_g``, ``tau_a``: correlation times (s) of
+    the Markov gyro and accelerometer errors (``inf``: random constants).
+    ``n_states`` 15 or 18.
+    """
+    Maa, Mav, Map, Mva, Mvv, Mvp, Mpv, Mpp = _blocks(f_n, v_n, lat, h)
+    D = D_pos(lat, h)
+    Di = np.linalg.inv(D)
+    F = np.zeros((n_states, n_states))
+    F[I_PHI, I_PHI] = Maa
+    F[I_PHI, I_V] = Mav
+    F[I_PHI, I_P] = Map @ Di
+    F[I_V, I_PHI] = Mva
+    F[I_V, I_V] = Mvv
+    F[I_V, I_P] = Mvp @ Di
+    F[I_P, I_V] = D @ Mpv
+    F[I_P, I_P] = D @ Mpp @ Di
+    ig, ia = 1.0 / tau_g, 1.0 / tau_a
+    if n_states == 15:
+        F[I_PHI, I_EPS15] = -C_b_n
+        F[I_V, I_NAB15] = C_b_n
+        F[I_EPS15, I_EPS15] = -ig * np.eye(3)
+        F[I_NAB15, I_NAB15] = -ia * np.eye(3)
+    elif n_states == 18:
+        F[I_PHI, I_EPSB] = -C_b_n
+        F[I_PHI, I_EPSR] = -C_b_n
+        F[I_V, I_NAB18] = C_b_n
+        F[I_EPSR, I_EPSR] = -ig * np.eye(3)
+        F[I_NAB18, I_NAB18] = -ia * np.eye(3)
+    else:
+        raise ValueError(f'n_states must be 15 or 18, not {n_states}')
+    return F
+
+
+def transition(F, T):
+    """Discrete transition ``Phi ~ expm(F T)`` to second order, (n, n)."""
+    FT = F * T
+    return np.eye(len(F)) + FT + 0.5 * FT @ FT
+
+
+def derivative18(x, f_n, v_n, C_b_n, lat, h, tau_g, tau_a):
+    """Noise-free ``x'`` of the 18-state model with the nonlinear attitude, (18,) or (18, N).
+
+    Attitude and velocity rows: seed 004 eq. 3 (:func:`.large_misalignment.derivative`,
+    ``phi`` the Euler-sequence misalignment) driven by ``eps_b + eps_r`` and ``nab``,
+    plus the position-error terms of the linear model; position, drift and Markov rows
+    as :func:`F_matrix`. Arguments as there.
+    """
+    x = np.asarray(x, dtype=float)
+    single = x.ndim == 1
+    X = x[:, None] if single else x
+    X12 = np.vstack([X[I_PHI], X[I_V], X[I_EPSB] + X[I_EPSR], X[I_NAB18]])
+    d12 = lm.derivative(X12, f_n, v_n, C_b_n, lat, h)
+    _, _, Map, _, _, Mvp, Mpv, Mpp = _blocks(f_n, v_n, lat, h)
+    D = D_pos(lat, h)
+    Di = np.linalg.inv(D)
+    dp = X[I_P]
+    out = np.zeros_like(X)
+    out[I_PHI] = d12[0:3] + (Map @ Di) @ dp
+    out[I_V] = d12[3:6] + (Mvp @ Di) @ dp
+    out[I_P] = (D @ Mpv) @ X[I_V] + (D @ Mpp @ Di) @ dp
+    out[I_EPSR] = -X[I_EPSR] / tau_g
+    out[I_NAB18] = -X[I_NAB18] / tau_a
+    return out[:, 0] if single else out
+
+
+def propagate18(x, f_n, v_n, C_b_n, lat, h, tau_g, tau_a, dt, substeps=1):
+    """Discrete transition of :func:`derivative18` over ``dt`` by classical Runge-Kutta."""
+    args = (f_n, v_n, C_b_n, lat, h, tau_g, tau_a)
+    step = dt / substeps
+    for _ in range(substeps):
+        k1 = derivative18(x, *args)
+        k2 = derivative18(x + 0.5 * step * k1, *args)
+        k3 = derivative18(x + 0.5 * step * k2, *args)
+        k4 = derivative18(x + step * k3, *args)
+        x = x + step / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    return x
+
+
+def H_matrix(n_states=15, velocity=True):
+    """Measurement matrix (6 or 3, n): position E, N, U (m), then velocity E, N, U (m/s)."""
+    rows = MEAS_STATES if velocity else MEAS_STATES[:3]
+    H = np.zeros((len(rows), n_states))
+    H[np.arange(len(rows)), rows] = 1.0
+    return H
+
+
+def markov_q(sigma, tau):
+    """Return the driving-noise density ``2 sigma^2 / tau`` of a first-order Markov process.
+
+    ``sigma``: its steady-state sigma, ``tau``: correlation time (0 for ``tau = inf``).
+    """
+    return 0.0 if not np.isfinite(tau) else 2.0 * sigma * sigma / tau
