@@ -21,10 +21,8 @@ Usage: python bench/navigation.py [--runs 10] [--procs 2] [--only flight,tuning,
 """
 import argparse
 import os
-import pickle
 import platform
 import sys
-import tempfile
 import time
 from multiprocessing import Pool
 from pathlib import Path
@@ -39,7 +37,9 @@ from sins_align_ros.align.pipeline import AlignmentPipeline, feed_arrays  # noqa
 from sins_align_ros.nav import earth  # noqa: E402
 from sins_align_ros.nav.frames import DEG, euler_error  # noqa: E402
 from sins_align_ros.sim.presets import alignment_params, scenario  # noqa: E402
-from sins_align_ros.sim.scenario import ScenarioStream  # noqa: E402
+
+sys.path.insert(0, str(ROOT / 'bench'))
+import moving_base  # noqa: E402
 
 #: seed 001 sec. 3.2: (position m, velocity m/s, roll, pitch, heading deg)
 PAPER = {'vbakf': (10.8, 0.304, 0.043, 0.042, 0.26), 'mvbakf': (9.7, 0.278, 0.041, 0.035, 0.24)}
@@ -50,28 +50,12 @@ FLIGHT_FILTERS = {'kf': ('kf', {}), 'vbakf': ('vbakf', {}),
 T_START = 60.0
 #: a second window, after the alignment transient (the heading converges in a few minutes)
 T_LATE = 600.0
-CACHE = Path(tempfile.gettempdir()) / 'sins_align_bench_nav'
 
 
-def simulate_cached(name, seed, duration=None):
-    """Simulate a scenario once per (name, seed); later filters load the arrays."""
-    CACHE.mkdir(exist_ok=True)
-    sc = scenario(name) if duration is None else scenario(name, duration=duration)
-    f = CACHE / f'{name}-{sc.duration:.0f}-{seed}.pkl'
-    if f.exists():
-        with open(f, 'rb') as fh:
-            return sc, pickle.load(fh)
-    full = ScenarioStream(sc, seed=seed).next_block(int(round(sc.duration * sc.imu_rate_hz)))
-    b = SimpleNamespace(
-        imu=SimpleNamespace(**{k: getattr(full.imu, k)
-                               for k in ('t', 'dtheta', 'dv', 'euler', 'v_n', 'pos')}),
-        gnss=SimpleNamespace(**{k: getattr(full.gnss, k) for k in (
-            't', 'lat', 'lon', 'h', 'v_n', 'fix', 'pos_cov', 'vel_cov')}))
-    tmp = f.with_suffix(f'.{os.getpid()}.tmp')
-    with open(tmp, 'wb') as fh:
-        pickle.dump(b, fh)
-    os.replace(tmp, f)
-    return sc, b
+def simulate_cached(name, seed):
+    """Return ``(scenario, arrays)``, simulated once per (name, seed) (moving_base's cache)."""
+    sc = scenario(name)
+    return sc, moving_base.simulate_cached(sc, seed, f'{name}-{sc.duration:.0f}')
 
 
 def run(name, seed, fine_filter, extra, record=False):

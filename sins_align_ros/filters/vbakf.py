@@ -21,6 +21,7 @@ measurement vector of which an epoch's ``z`` holds rows ``idx``.
 """
 import numpy as np
 
+from .asckf import CKF
 from .cubature import batched
 from .kf import nis
 from .ukf import ukf_predict, ukf_update
@@ -38,26 +39,16 @@ def _H(hx, n):
     return np.asarray(hx(np.eye(n)), dtype=float)
 
 
-class KF:
-    """Standard Kalman filter (seed 001 eq. 3) with the cubature filters' interface."""
+class KF(CKF):
+    """Standard Kalman filter (seed 001 eq. 3) with the cubature filters' interface.
 
-    divergence_flags = 0
-    lam = None
+    The bookkeeping (``x``, ``P``, ``Q``, ``R``, ``transform``) is the CKF's.
+    """
 
     def __init__(self, x0, P0, Q, R):
-        self.x = np.array(x0, dtype=float)
-        self.P = np.array(P0, dtype=float)
-        self.Q = np.array(Q, dtype=float)
-        self.R = np.array(R, dtype=float)
-        self.rejected = False
-        self.last = None
+        super().__init__(x0, P0, Q, R)
         #: the nominal one-step prediction covariance of the last epoch (n, n)
         self.P_nominal = None
-
-    def transform(self, T):
-        """Change state coordinates: ``x <- T x``, ``P <- T P T^T``."""
-        self.x = T @ self.x
-        self.P = T @ self.P @ T.T
 
     def predict(self, fx):
         """Time update ``x = F x``, ``P = F P F^T + Q`` (seed 001 eq. 3)."""

@@ -4,7 +4,8 @@ Starts ``simulator_node`` and ``alignment_node`` as separate processes (the
 executables ``ros2 run`` would start, found through the ament index) on a
 private ROS domain, follows ``/diagnostics``, ``sim/truth`` and ``imu/data``,
 prints each phase change and a progress line, and ends with the final attitude
-error against the simulator's truth.
+error against the simulator's truth (and, for the navigation filters, the final
+position and velocity error of ``~/odom``).
 """
 import argparse
 import os
@@ -23,12 +24,15 @@ from .conversions import stamp_to_ns
 from .runner import stop_processes
 from ..nav.frames import ARCMIN, attitude_error, quat_to_dcm, quat_to_euler, yaw_to_heading
 from ..align.limits import alignment_limits
-from ..align.params import AVAILABLE_FINE_FILTERS, MOVING_FILTERS
+from ..align.params import AVAILABLE_FINE_FILTERS, MOVING_FILTERS, NAV_FILTERS
+from ..nav import earth
 from ..sim.presets import alignment_params, scenario, translates
 
-#: scenarios the demo offers: still bases, the moored ship and two ships underway
+#: scenarios the demo offers: still bases, the moored ship, two ships underway, a car with a
+#: MEMS IMU and an aircraft (for the navigation filters)
 DEMO_SCENARIOS = ('ship_sway', 'static_navigation', 'static_tactical', 'seed002_1deg',
-                  'seed002_5deg', 'seed002_10deg', 'ship_underway', 'seed000_case1')
+                  'seed002_5deg', 'seed002_10deg', 'ship_underway', 'seed000_case1',
+                  'seed003_car', 'seed001_flight')
 
 
 def _executable(name):
@@ -41,18 +45,28 @@ class _Watcher:
         self.node = rclpy.create_node('demo_watcher', context=ctx)
         qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
         self.truth = {}
+        self.truth_nav = {}
+        self.odom = None
         self.att = None
         self.status = None
         self.phases = []
         self.node.create_subscription(Odometry, 'sim/truth', self._on_truth, qos)
         self.node.create_subscription(Imu, 'imu/data', self._on_att, 50)
         self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag, 10)
+        self.node.create_subscription(Odometry, 'alignment_node/odom', self._on_odom, 50)
 
     def _on_truth(self, m):
         q = m.pose.pose.orientation
-        self.truth[stamp_to_ns(m.header.stamp)] = np.array([q.x, q.y, q.z, q.w])
+        ns = stamp_to_ns(m.header.stamp)
+        self.truth[ns] = np.array([q.x, q.y, q.z, q.w])
+        p, v = m.pose.pose.position, m.twist.twist.linear
+        self.truth_nav[ns] = (np.array([p.x, p.y, p.z]), np.array([v.x, v.y, v.z]), m)
         if len(self.truth) > 20000:
             self.truth.pop(next(iter(self.truth)))
+            self.truth_nav.pop(next(iter(self.truth_nav)))
+
+    def _on_odom(self, m):
+        self.odom = m
 
     def _on_att(self, m):
         if m.orientation_covariance[0] >= 0.0:
@@ -70,6 +84,37 @@ class _Watcher:
                     self.phases.append(ph)
                     el = float(self.status.get('elapsed_s', 0))
                     print(f'  phase -> {ph:8s} (elapsed {el:7.1f} s)  {st.message}', flush=True)
+
+
+def _report_navigation(w, sc):
+    """Print the last ~/odom's position and velocity error against the truth (ENU)."""
+    m = w.odom
+    s = w.status or {}
+    if m is None or 'odom_origin_lat_deg' not in s or not w.truth_nav:
+        print('\nNo navigation output (~/odom) was received.')
+        return
+    t_ns = stamp_to_ns(m.header.stamp)
+    tt = min(w.truth_nav, key=lambda k: abs(k - t_ns))
+    p_true, _, truth_msg = w.truth_nav[tt]
+    tr = sc.trajectory
+    origin = earth.local_offset_m(np.radians(tr.lat_deg), np.radians(tr.lon_deg), tr.h,
+                                  np.radians([float(s['odom_origin_lat_deg'])]),
+                                  np.radians([float(s['odom_origin_lon_deg'])]),
+                                  np.array([float(s['odom_origin_h_m'])]))[0]
+    p = m.pose.pose.position
+    err = origin + np.array([p.x, p.y, p.z]) - p_true
+    sig = np.sqrt(np.diag(np.array(m.pose.covariance).reshape(6, 6))[:3])
+    q = m.pose.pose.orientation
+    C = quat_to_dcm(np.array([q.x, q.y, q.z, q.w]))
+    v = m.twist.twist.linear
+    v_n = C @ np.array([v.x, v.y, v.z])
+    tq = truth_msg.pose.pose.orientation
+    tv = truth_msg.twist.twist.linear
+    v_true = quat_to_dcm(np.array([tq.x, tq.y, tq.z, tq.w])) @ np.array([tv.x, tv.y, tv.z])
+    print(f'Navigation (~/odom) at the end: position error E {err[0]:+.2f} m, N {err[1]:+.2f} m, '
+          f'U {err[2]:+.2f} m (1-sigma {sig[0]:.2f}, {sig[1]:.2f}, {sig[2]:.2f} m; GNSS noise '
+          f'{sc.gnss.pos_sigma_h:g} m); velocity error '
+          f'{np.linalg.norm(v_n - v_true):.3f} m/s')
 
 
 def _report(w, sc, fine_time, fine_filter):
@@ -159,7 +204,10 @@ def main(argv=None):
         end = time.monotonic() + 2.0
         while time.monotonic() < end:
             ex.spin_once(timeout_sec=0.1)
-        return _report(watcher, sc, args.duration - args.coarse, args.filter)
+        code = _report(watcher, sc, args.duration - args.coarse, args.filter)
+        if args.filter in NAV_FILTERS:
+            _report_navigation(watcher, sc)
+        return code
     except KeyboardInterrupt:
         return 130
     finally:
