@@ -152,6 +152,29 @@ def test_vb_filters_learn_a_wrong_measurement_noise(cls):
     assert np.diag(k.R) == pytest.approx(np.diag(R))
 
 
+@pytest.mark.parametrize('cls', [KF, VBAKF, MVBAKF])
+def test_gated_vb_filters_learn_a_noise_step_instead_of_rejecting_it(cls):
+    """GNSS noise steps to 4x (seed 001's abrupt change) with the innovation gate on: the VB
+    filters learn R from the rejected epochs and accept the measurements again after a
+    few; the plain KF rejects the step for as long as it lasts."""
+    F, Q, H, R, X, Z = _linear_problem(9, 400)
+    rng = np.random.default_rng(10)
+    Z = Z.copy()
+    Z[200:] = (H @ X[200:].T).T + 4.0 * 0.5 * rng.standard_normal((200, 2))
+    f = cls(np.zeros(4), np.eye(4), Q, R)
+    hx = batched(lambda X: H @ X)
+    rejected = []
+    for z in Z:
+        f.step(linear(F), z, hx, max_nis=lkf.chi2_quantile(0.9999, 2))
+        rejected.append(f.rejected)
+    late = np.mean(rejected[250:])
+    if cls is KF:
+        assert late > 0.3
+    else:
+        assert late < 0.02 and sum(rejected[200:230]) >= 1
+        assert np.diag(f.R) == pytest.approx(16.0 * np.diag(R), rel=0.35)
+
+
 def _p_ratios(f, F, H, Z):
     hx = batched(lambda X: H @ X)
     out = []

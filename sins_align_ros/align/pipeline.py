@@ -346,15 +346,16 @@ class AlignmentPipeline:
                 outs.append(out)
                 i = j
                 continue
+            # fine / aligned
+            period = 1.0 / self.cfg['fine_update_hz']
+            if n == 1:                      # the live node's path: scalar arithmetic
+                return self._one(t[0], dtheta[0], dv[0], period)
             if self.engine is not None:
                 out, used = self._process_moving(t[i:], dtheta[i:], dv[i:])
                 outs.append(out)
                 i += used
                 continue
-            # fine / aligned: mechanize up to the next filter epoch
-            period = 1.0 / self.cfg['fine_update_hz']
-            if n == 1:
-                return self._one(t[0], dtheta[0], dv[0], period)
+            # mechanize up to the next filter epoch
             j = i
             acc = self._since_update
             while j < n:
@@ -383,8 +384,14 @@ class AlignmentPipeline:
             if self._pending and self._pending[0][0] <= t + 1e-9:
                 eng = self.engine
                 self._apply_pending(t)
-                if self.engine is not eng:
-                    return _unknown([t], self.phase)
+                if self.engine is not eng:             # diverged: restarted from coarse
+                    P = eng.attitude_cov()
+                    eul = dcm_to_euler(eng.mech.C_b_n)
+                    nav = (np.full((1, 6), np.nan) if isinstance(eng, IntegratedNavigation)
+                           and self.cfg['continue_navigation'] else None)
+                    return Output(np.array([t]), dcm_to_quat(eng.mech.C_b_n)[None], eul[None],
+                                  euler_sigma_one(eul, P.tolist())[None], P[None],
+                                  np.array([FINE], dtype=object), nav)
                 C = self.mech.C_b_n
         else:
             C = self.mech.step(dtheta, dv, dt)

@@ -18,6 +18,14 @@ drive any of them: ``step(fx, z, hx, idx, max_nis)``, ``predict(fx)``, ``x``, ``
 
 Shapes: ``x`` (n,), ``P``/``Q`` (n, n), ``z`` (m,), ``R`` (M, M) over the full
 measurement vector of which an epoch's ``z`` holds rows ``idx``.
+
+An epoch rejected by the innovation gate (``max_nis``) keeps the prediction; the
+adaptive filters still learn R from it (not in the seeds): each row's prior
+innovation squared less its predicted state part, winsorised at :data:`CLIP` times
+its predicted variance, enters the R statistics as one epoch. Otherwise a lasting
+rise of the receiver noise (seed 001's 4x step) is rejected epoch after epoch and
+never learnt -- the filter then re-anchors by force and the pipeline restarts --,
+while a single outlier moves R by a bounded step that the forgetting removes again.
 """
 import numpy as np
 
@@ -26,6 +34,15 @@ from .cubature import batched
 from .kf import nis
 from .ukf import ukf_predict, ukf_update
 from .vb import _Innovation, vb_update
+
+#: winsorisation of a rejected epoch's innovation, in predicted variances (99.9% of chi2(1))
+CLIP = 10.83
+
+
+def _rejected_noise(y, S, HPH):
+    """Per-row R sample of a rejected epoch: ``y^2 - (H P H^T)_ii`` in ``[0, CLIP S_ii]``."""
+    s = np.diag(S)
+    return np.clip(y * y - np.diag(HPH), 0.0, CLIP * s)
 
 
 def linear(F):
@@ -82,9 +99,14 @@ class KF(CKF):
         idx = np.arange(len(self.R)) if idx is None else np.asarray(idx)
         H, y, S, R = self._prior(fx, z, hx, idx)
         self.rejected = max_nis is not None and nis(y, S) > max_nis
-        if not self.rejected:
+        if self.rejected:
+            self._learn_rejected(y, S, H @ self.P @ H.T, idx)
+        else:
             self._update(H, z, y, S, R, idx)
         return self.last
+
+    def _learn_rejected(self, y, S, HPH, idx):
+        """Learn from a rejected epoch (module docstring); the plain KF does not adapt."""
 
     def _update(self, H, z, y, S, R, idx):
         K = np.linalg.solve(S, H @ self.P).T
@@ -118,6 +140,11 @@ class VBAKF(KF):
         self.x, self.P, a, b, _, _ = vb_update(self.x, self.P, z, H, a_pred, b_pred,
                                                self.n_iter)
         self.alpha[idx], self.beta[idx] = a, b
+        self.R = self.R_prior()
+
+    def _learn_rejected(self, y, S, HPH, idx):
+        self.alpha[idx] = self.rho * self.alpha[idx] + 0.5
+        self.beta[idx] = self.rho * self.beta[idx] + 0.5 * _rejected_noise(y, S, HPH)
         self.R = self.R_prior()
 
 
@@ -172,13 +199,29 @@ class MVBAKF(KF):
         d = self.rho * (self.u - M - 1.0)
         return (self.rho * self.U) / d
 
-    def _update(self, H, z, y, S, R, idx):
-        n, M, m = len(self.x), len(self.U), len(idx)
-        # time update of the R prior (eq. 12-13)
+    def _r_prior(self, idx):
+        """Time update of the R prior (eq. 12-13): ``(u, U, U[idx, idx], u - M - 1)``."""
+        M = len(self.U)
         u_p = self.rho * (self.u - M - 1.0) + M + 1.0
         U_p = self.rho * self.U
-        U_sub = U_p[np.ix_(idx, idx)]
-        d_sub = u_p - M - 1.0                     # the marginal's u - m - 1 (class docstring)
+        return u_p, U_p, U_p[np.ix_(idx, idx)], u_p - M - 1.0
+
+    def _absorb(self, u_p, U_p, d_sub, U_sub, B, idx):
+        """Eq. 36-38: ``u = u + 1``, ``U[idx, idx] = U + B``; other rows keep their R."""
+        M = len(self.U)
+        u_new = u_p + 1.0
+        U_new = U_p * ((u_new - M - 1.0) / d_sub)
+        U_new[np.ix_(idx, idx)] = U_sub + B
+        self.u, self.U = u_new, 0.5 * (U_new + U_new.T)
+        self.R = self.U / (self.u - M - 1.0)                             # eq. 38
+
+    def _learn_rejected(self, y, S, HPH, idx):
+        u_p, U_p, U_sub, d_sub = self._r_prior(idx)
+        self._absorb(u_p, U_p, d_sub, U_sub, np.diag(_rejected_noise(y, S, HPH)), idx)
+
+    def _update(self, H, z, y, S, R, idx):
+        n, m = len(self.x), len(idx)
+        u_p, U_p, U_sub, d_sub = self._r_prior(idx)   # d_sub: the marginal's u - m - 1
         # prior of P(k|k-1): t = n + tau + 1, T = tau P~ (eq. 8-10)
         P_t = self.P_nominal
         T = self.tau * P_t
@@ -204,13 +247,7 @@ class MVBAKF(KF):
             r = z - H @ x
         self.x, self.P = x, P
         self.p_ratio = float(np.trace(P_pred) / np.trace(P_t))
-        # eq. 36-37: u(k|k) = u(k|k-1) + 1, U(k|k) = U(k|k-1) + B (sub-block); the rows
-        # not measured keep their R estimate
-        u_new = u_p + 1.0
-        U_new = U_p * ((u_new - M - 1.0) / d_sub)
-        U_new[np.ix_(idx, idx)] = U_sub + B
-        self.u, self.U = u_new, 0.5 * (U_new + U_new.T)
-        self.R = self.U / (self.u - M - 1.0)                             # eq. 38
+        self._absorb(u_p, U_p, d_sub, U_sub, B, idx)
 
 
 class UKF(KF):
