@@ -93,9 +93,7 @@ class Output:
             return parts[0]
         out = Output(*(np.concatenate([getattr(p, f) for p in parts])
                        for f in ('t', 'q', 'euler', 'sigma', 'P_phi', 'phase')))
-        if any(p.nav is not None for p in parts):
-            out.nav = np.concatenate([p.nav if p.nav is not None
-                                      else np.full((len(p.t), 6), np.nan) for p in parts])
+        out.nav = _concat_nav(parts)
         return out
 
     @staticmethod
@@ -123,6 +121,22 @@ class _Rows:
         return _assemble([self])
 
 
+def _concat_nav(parts):
+    """Join the parts' navigation rows (N, 6), NaN for parts without; None if none has any."""
+    if all(p.nav is None for p in parts):
+        return None
+    return np.concatenate([p.nav if p.nav is not None else np.full((len(p.t), 6), np.nan)
+                           for p in parts])
+
+
+def _one_row(t, C, P, phase, nav):
+    """One-row :class:`Output` from an attitude (3, 3) and its covariance (3, 3)."""
+    eul = dcm_to_euler(C)
+    return Output(np.array([t]), dcm_to_quat(C)[None], eul[None],
+                  euler_sigma_one(eul, P.tolist())[None], P[None],
+                  np.array([phase], dtype=object), nav)
+
+
 def _assemble(parts):
     """Convert runs of fine-phase :class:`_Rows` in one vectorised pass; join everything."""
     done, run = [], []
@@ -137,11 +151,7 @@ def _assemble(parts):
         eul = dcm_to_euler(C)
         P_e = euler_cov_from_phi_cov(eul, P)
         sig = np.sqrt(np.clip(np.diagonal(P_e, axis1=1, axis2=2), 0.0, None))
-        nav = None
-        if any(r.nav is not None for r in run):
-            nav = np.concatenate([r.nav if r.nav is not None
-                                  else np.full((len(r.t), 6), np.nan) for r in run])
-        done.append(Output(t, dcm_to_quat(C), eul, sig, P, ph, nav))
+        done.append(Output(t, dcm_to_quat(C), eul, sig, P, ph, _concat_nav(run)))
         run.clear()
 
     for p in parts:
@@ -385,13 +395,9 @@ class AlignmentPipeline:
                 eng = self.engine
                 self._apply_pending(t)
                 if self.engine is not eng:             # diverged: restarted from coarse
-                    P = eng.attitude_cov()
-                    eul = dcm_to_euler(eng.mech.C_b_n)
                     nav = (np.full((1, 6), np.nan) if isinstance(eng, IntegratedNavigation)
                            and self.cfg['continue_navigation'] else None)
-                    return Output(np.array([t]), dcm_to_quat(eng.mech.C_b_n)[None], eul[None],
-                                  euler_sigma_one(eul, P.tolist())[None], P[None],
-                                  np.array([FINE], dtype=object), nav)
+                    return _one_row(t, eng.mech.C_b_n, eng.attitude_cov(), FINE, nav)
                 C = self.mech.C_b_n
         else:
             C = self.mech.step(dtheta, dv, dt)
@@ -401,15 +407,11 @@ class AlignmentPipeline:
                 self._filter_step(self._since_update)
                 self._since_update = 0.0
                 C = self.mech.C_b_n
-        P = self.attitude_cov()
-        eul = dcm_to_euler(C)
         nav = None
         if self.navigating:
             m = self.mech
             nav = np.array([[m.lat, m.lon, m.h, m.v_n[0], m.v_n[1], m.v_n[2]]])
-        return Output(np.array([t]), dcm_to_quat(C)[None], eul[None],
-                      euler_sigma_one(eul, P.tolist())[None], P[None],
-                      np.array([self.phase], dtype=object), nav)
+        return _one_row(t, C, self.attitude_cov(), self.phase, nav)
 
     def widen(self, var_phi, var_v=0.0):
         """Widen the fine filter's covariance by an error the input may have left.
