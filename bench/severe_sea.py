@@ -192,7 +192,9 @@ def run_pipeline(grade, seed, fine_filter, gate, extra=()):
 
 PIPELINE_FILTERS = {'ckf': ('ckf', ()), 'srckf': ('asckf', (('asckf_fading', False),
                                                             ('asckf_adaptive', False))),
-                    'asckf': ('asckf', ()), 'vbckf': ('vbckf', ()), 'vbch': ('vbch', ())}
+                    'asckf': ('asckf', ()), 'vbckf': ('vbckf', ()), 'vbch': ('vbch', ()),
+                    'kf': ('kf', ()), 'vbakf': ('vbakf', ()), 'mvbakf': ('mvbakf', ()),
+                    'ukf': ('ukf', ())}
 
 
 def all_filters(runs, procs):
