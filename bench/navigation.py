@@ -18,6 +18,7 @@
    the pipeline, block feed (replay) and one sample per call (the live node's path).
 
 Usage: python bench/navigation.py [--runs 10] [--procs 2] [--only flight,tuning,car,speed]
+       [--imu GRADE]  (the flight with another IMU preset, e.g. mems)
 """
 import argparse
 import os
@@ -36,7 +37,7 @@ sys.path.insert(0, str(ROOT))
 from sins_align_ros.align.pipeline import AlignmentPipeline, feed_arrays  # noqa: E402
 from sins_align_ros.nav import earth  # noqa: E402
 from sins_align_ros.nav.frames import DEG, euler_error  # noqa: E402
-from sins_align_ros.sim.presets import alignment_params, scenario  # noqa: E402
+from sins_align_ros.sim.presets import SENSOR_GRADES, alignment_params, scenario  # noqa: E402
 
 sys.path.insert(0, str(ROOT / 'bench'))
 import moving_base  # noqa: E402
@@ -53,8 +54,15 @@ T_LATE = 600.0
 
 
 def simulate_cached(name, seed):
-    """Return ``(scenario, arrays)``, simulated once per (name, seed) (moving_base's cache)."""
-    sc = scenario(name)
+    """Return ``(scenario, arrays)``, simulated once per (name, seed) (moving_base's cache).
+
+    ``name`` is a scenario preset, optionally with ``@grade``: the preset with the IMU of
+    ``SENSOR_GRADES[grade]`` instead of its own (``--imu``).
+    """
+    base, _, grade = name.partition('@')
+    sc = scenario(base)
+    if grade:
+        sc.imu = SENSOR_GRADES[grade]
     return sc, moving_base.simulate_cached(sc, seed, f'{name}-{sc.duration:.0f}')
 
 
@@ -137,9 +145,9 @@ def _mean(rows, key):
     return float(np.nanmean(v, axis=0)) if v.ndim == 1 else np.nanmean(v, axis=0)
 
 
-def flight(runs, procs):
+def flight(runs, procs, scen='seed001_flight'):
     """Section 1; returns lines and the R curves of seed 1."""
-    lines = ['## 1. Seed 001 flight (3600 s, filter Q = 9x truth, GNSS noise 4x at '
+    lines = [f'## 1. Seed 001 flight ({scen}: 3600 s, filter Q = 9x truth, GNSS noise 4x at '
              '1200-1500 s and ramping to 3x over 2400-3000 s)', '',
              f'RMSE after coarse alignment (t >= {T_START:.0f} s), mean over {runs} seeded '
              'runs; position and velocity 3-D (seed 001 eq. 40). Restarts: runs in which the '
@@ -148,8 +156,8 @@ def flight(runs, procs):
     for gate, gp in (('off (the paper)', 1.0), ('on (default 0.9999)', 0.9999)):
         filters = {k: v for k, v in FLIGHT_FILTERS.items()
                    if gp == 1.0 or 'inverse' not in k}     # (it diverges without the gate)
-        jobs = [('seed001_flight', s, ff, {**ex, 'nav_q_scale': 9.0,
-                                           'gnss_gate_probability': gp}, s == 1 and gp == 1.0)
+        jobs = [(scen, s, ff, {**ex, 'nav_q_scale': 9.0, 'gnss_gate_probability': gp},
+                 s == 1 and gp == 1.0)
                 for name, (ff, ex) in filters.items() for s in range(1, runs + 1)]
         res = _pool(jobs, procs)
         lines += [f'GNSS innovation gate {gate}:', '',
@@ -285,17 +293,21 @@ def main():
     ap.add_argument('--procs', type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument('--only', default='flight,tuning,car,speed')
     ap.add_argument('--out', default=str(ROOT / 'bench' / 'results' / 'navigation.md'))
+    ap.add_argument('--imu', choices=sorted(SENSOR_GRADES), default=None,
+                    help='fly the flight section with this IMU preset instead of tactical')
     args = ap.parse_args()
     parts = args.only.split(',')
     t0 = time.time()
     lines = ['# Navigation filters (issue 5)', '',
              f'`python bench/navigation.py --runs {args.runs} --tuning-runs {args.tuning_runs} '
-             f'--only {args.only}`; {platform.machine()}, {os.cpu_count()} cores, Python '
+             f'--only {args.only}{f" --imu {args.imu}" if args.imu else ""}`; '
+             f'{platform.machine()}, {os.cpu_count()} cores, Python '
              f'{platform.python_version()}.', '']
     if 'flight' in parts:
-        fl, curves = flight(args.runs, args.procs)
+        fl, curves = flight(args.runs, args.procs,
+                            'seed001_flight' + (f'@{args.imu}' if args.imu else ''))
         lines += fl
-        png = Path(args.out).with_name('navigation_R.png')
+        png = Path(args.out).with_name(Path(args.out).stem + '_R.png')
         plot_curves(curves, png)
         lines += [f'R estimate of seed 1 (gate off): `{png.name}`.', '']
     if 'tuning' in parts:
