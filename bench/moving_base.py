@@ -41,7 +41,7 @@ from sins_align_ros.align.pipeline import AlignmentPipeline, feed_arrays  # noqa
 from sins_align_ros.models import large_azimuth as la  # noqa: E402
 from sins_align_ros.nav.frames import (ARCMIN, DEG, attitude_error, euler_to_dcm,  # noqa: E402
                                        quat_to_dcm)
-from sins_align_ros.sim.presets import misalignment_rad, scenario  # noqa: E402
+from sins_align_ros.sim.presets import misalignment_rad, noise_window, scenario  # noqa: E402
 from sins_align_ros.sim.scenario import ScenarioStream  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -94,7 +94,8 @@ def run_fine(case, seed, variant, paper_p0=True, qscale=1.0, noise_profile=None,
     sc = scenario(f'seed000_case{case}', duration=duration)
     if noise_profile is not None:
         sc.extra['gnss_noise_profile'] = noise_profile
-    noise = f'wn{noise_profile[1][0]:g}' if noise_profile else 'nom'
+    noise = ('wn' + '-'.join(f'{t:g}x{k:g}' for t, k in noise_profile) if noise_profile
+             else 'nom')
     b = simulate_cached(sc, seed, f'c{case}-{duration:.0f}-{noise}')
     phi0 = misalignment_rad(sc).copy()
     if heading_err_deg is not None:
@@ -171,16 +172,10 @@ def table1(runs, procs):
     return lines
 
 
-def noise_window(t0, t1, factor=10.0, end=1440.0):
-    """GNSS noise multiplier profile: ``factor`` between ``t0`` and ``t1`` s, 1 elsewhere."""
-    return ((0.0, 1.0), (t0, 1.0), (t0 + 0.01, factor), (t1, factor), (t1 + 0.01, 1.0),
-            (end, 1.0))
-
-
 def wrong_noise(runs, procs, window=(400.0, 700.0), title='2. Wrong noise statistics'):
     """Section 2 as markdown lines (consistent and the paper's P0)."""
     jobs = [dict(case=1, seed=s, variant=v, paper_p0=p, qscale=9.0,
-                 noise_profile=noise_window(*window))
+                 noise_profile=noise_window(*window, 10.0, 1440.0))
             for p in (False, True) for v in VARIANTS for s in range(1, runs + 1)]
     res = _pool_map(jobs, procs)
     lines = [f'## {title} (case 1)', '',

@@ -14,7 +14,7 @@ from sins_align_ros.filters.cubature import CubatureUpdate, batched
 from sins_align_ros.models import large_azimuth as la
 from sins_align_ros.nav.frames import ARCMIN, DEG, attitude_error, euler_to_dcm, quat_to_dcm
 from sins_align_ros.nav.mechanization import Strapdown
-from sins_align_ros.sim.presets import scenario
+from sins_align_ros.sim.presets import noise_window, scenario
 from sins_align_ros.sim.scenario import ScenarioStream
 
 MARINE = {'gyro_bias_dph': 0.003, 'gyro_arw_dpsh': 0.0005, 'accel_bias_ug': 30.0,
@@ -157,8 +157,7 @@ def test_asckf_learns_a_gnss_noise_rise_over_the_manoeuvre_where_the_ckf_is_misl
     """
     seconds = 400.0
     sc = scenario('seed000_case1', duration=seconds)
-    sc.extra['gnss_noise_profile'] = ((0.0, 1.0), (30.0, 1.0), (30.01, 10.0), (330.0, 10.0),
-                                      (330.01, 1.0), (seconds, 1.0))
+    sc.extra['gnss_noise_profile'] = noise_window(30.0, 330.0, 10.0, seconds)
     b = ScenarioStream(sc, seed=1).next_block(int(seconds * sc.imu_rate_hz))
     phi0 = np.array([0.03, 0.03, 0.35]) * DEG
     sig0 = np.array([0.06, 0.06, 1.0]) * DEG                 # consistent with phi0

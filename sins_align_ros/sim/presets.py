@@ -107,6 +107,16 @@ def _seed002(mis):
         misalignment_deg=(mis, mis, mis))
 
 
+def noise_window(t0, t1, factor, end):
+    """GNSS noise multiplier profile (``Scenario.extra['gnss_noise_profile']``).
+
+    ``factor`` from ``t0`` to ``t1`` s, 1 elsewhere up to ``end`` s; the receiver's
+    reported covariance stays nominal (the filter is not told).
+    """
+    return ((0.0, 1.0), (t0, 1.0), (t0 + 0.01, factor), (t1, factor), (t1 + 0.01, 1.0),
+            (end, 1.0))
+
+
 def seed000_profile():
     """Our acceleration profile for seed 000's "accelerating ship".
 
