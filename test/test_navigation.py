@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from sins_align_ros.align.navigation import IntegratedNavigation, model_noise
+from sins_align_ros.align.navigation import IntegratedNavigation, gyro_tau, model_noise
 from sins_align_ros.align.pipeline import AlignmentPipeline, feed_arrays
 from sins_align_ros.filters import kf as lkf
 from sins_align_ros.filters.cubature import batched
@@ -222,6 +222,30 @@ def test_markov_compensation_decays_with_its_correlation_time():
     with pytest.raises(ValueError):
         IntegratedNavigation(np.eye(3), np.zeros(3), LAT, 0.0, 0.0, P0, Qc, np.eye(6),
                              method='nope')
+
+
+def test_a_constant_bias_folded_into_the_markov_state_keeps_the_markov_drive():
+    # the mems grade: 200 deg/h constant, 50 deg/h Markov with 300 s
+    sigma, tau = lc.fold_markov(200 * DPH, 50 * DPH, 300.0)
+    assert sigma == pytest.approx(math.hypot(200, 50) * DPH)
+    assert tau == pytest.approx(300.0 * (200 ** 2 + 50 ** 2) / 50 ** 2)      # 5100 s
+    # the folded state moves as fast as the true error does: the same driving density
+    assert lc.markov_q(sigma, tau) == pytest.approx(lc.markov_q(50 * DPH, 300.0))
+    assert lc.fold_markov(DPH, 0.0, 300.0) == (pytest.approx(DPH), 1.0e6)   # a constant
+    assert gyro_tau(15, (200 * DPH, 50 * DPH), 300.0) == pytest.approx(tau)
+    assert gyro_tau(18, (200 * DPH, 50 * DPH), 300.0) == 300.0         # kept apart there
+    P0, Qc = model_noise(15, [1e-3] * 3, 0.1, 1.0, (200 * DPH, 50 * DPH), (100 * UG, 0.0),
+                         0.0, 0.0, tau, 1000.0)
+    assert Qc[lc.I_EPS15] == pytest.approx([lc.markov_q(50 * DPH, 300.0)] * 3)
+    # the 15-state engine keeps most of a 200 deg/h compensation over the flight's final
+    # 855 s cruise (it kept 6% with the Markov part's 300 s)
+    eng = IntegratedNavigation(np.eye(3), np.zeros(3), LAT, 0.0, 0.0, P0, Qc, np.eye(6),
+                               method='kf', tau_g=tau)
+    eng.eps_markov[:] = 200 * DPH
+    for _ in range(855):
+        eng._T = 1.0
+        eng._restart_interval()
+    assert np.all(eng.eps_markov > 0.84 * 200 * DPH)
 
 
 def _pipeline_run(name, ff, duration, seed=1, **extra):

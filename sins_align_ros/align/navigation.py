@@ -34,6 +34,20 @@ from .moving import GnssFix, MovingBaseAlignment
 NAV_FILTERS = ('kf', 'vbakf', 'mvbakf', 'ukf')
 
 
+def gyro_tau(n_states, gyro, tau_g):
+    """Correlation time (s) the model gives its gyro Markov state.
+
+    ``gyro``: ``(constant sigma, Markov sigma)`` rad/s, ``tau_g``: the Markov part's
+    correlation time. The 18-state model keeps the constant apart and uses ``tau_g``;
+    the 15-state model folds both into one state whose time is
+    :func:`~sins_align_ros.models.loosely_coupled.fold_markov`'s. Pass the result as
+    :class:`IntegratedNavigation`'s ``tau_g`` and :func:`model_noise`'s.
+    """
+    if n_states == 15:
+        return lc.fold_markov(gyro[0], gyro[1], tau_g)[1]
+    return float(tau_g)
+
+
 def model_noise(n_states, sigma_phi, sigma_v, sigma_p, gyro, accel, gyro_arw, accel_vrw,
                 tau_g, tau_a, q_scale=1.0):
     """P0 (n, n) and Qc (n,) of the 15- or 18-state model.
@@ -41,7 +55,8 @@ def model_noise(n_states, sigma_phi, sigma_v, sigma_p, gyro, accel, gyro_arw, ac
     ``sigma_phi`` (3,) rad, ``sigma_v`` m/s, ``sigma_p`` m: initial navigation errors.
     ``gyro``, ``accel``: ``(constant sigma, Markov sigma)`` of the sensor errors (rad/s,
     m/s^2); the 15-state model has one Markov state per sensor whose steady sigma is
-    their root sum square (seed 001's first-order Markov errors), the 18-state model
+    their root sum square (seed 001's first-order Markov errors; ``tau_g`` must then be
+    :func:`gyro_tau`'s, which keeps the Markov part's drive), the 18-state model
     a random constant and a Markov state for the gyro (seed 003 eq. 23-24) and a Markov
     accelerometer error of the total sigma (eq. 25). ``gyro_arw`` rad/sqrt(s),
     ``accel_vrw`` m/s/sqrt(s). ``q_scale`` multiplies Qc (seed 001 runs its filters

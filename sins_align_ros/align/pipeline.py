@@ -35,7 +35,7 @@ import numpy as np
 from . import params as prm
 from .gnss_input import reported_variances
 from .moving import FilterDiverged, GnssFix, MovingBaseAlignment
-from .navigation import IntegratedNavigation, model_noise as nav_model_noise
+from .navigation import IntegratedNavigation, gyro_tau, model_noise as nav_model_noise
 from .preprocess import Preprocessor
 from .robust import RobustAlignment, model_noise
 from ..filters import kf
@@ -714,15 +714,15 @@ class AlignmentPipeline:
         n = 18 if ff == 'ukf' else 15
         gyro = (cfg['gyro_bias_dph'] * _DPH, cfg['gyro_bias_instability_dph'] * _DPH)
         accel = (cfg['accel_bias_ug'] * _UG, 0.0)
+        tau_g = gyro_tau(n, gyro, cfg['gyro_bias_tau_s'])
         P0, Qc = nav_model_noise(n, sigma, s_v, max(cfg['gnss_pos_sigma_m'],
                                                     cfg['gnss_height_sigma_m']),
                                  gyro, accel, self.noise.gyro_arw, self.noise.accel_vrw,
-                                 cfg['gyro_bias_tau_s'], cfg['accel_bias_tau_s'],
-                                 q_scale=cfg['nav_q_scale'])
+                                 tau_g, cfg['accel_bias_tau_s'], q_scale=cfg['nav_q_scale'])
         R = np.diag([cfg['gnss_pos_sigma_m'] ** 2] * 2 + [cfg['gnss_height_sigma_m'] ** 2]
                     + [cfg['gnss_vel_sigma_mps'] ** 2] * 3)
         return IntegratedNavigation(
-            C, v_n, lat, lon, h, P0, Qc, R, method=ff, tau_g=cfg['gyro_bias_tau_s'],
+            C, v_n, lat, lon, h, P0, Qc, R, method=ff, tau_g=tau_g,
             tau_a=cfg['accel_bias_tau_s'], rho=cfg['nav_forgetting'],
             n_iter=cfg['nav_iterations'], tau=cfg['mvbakf_tau'],
             moment=cfg['mvbakf_moment'],
