@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
 # The test command: set up (virtualenv + colcon build, idempotent), then pytest.
-# Extra arguments go to pytest (e.g. scripts/test.sh -k mechanization).
+# Extra arguments go to pytest (e.g. scripts/test.sh -k mechanization). The tests run on
+# SINS_TEST_WORKERS pytest-xdist workers (default 2, the CI machine's cores; 0 runs them in
+# this process); tests of one xdist_group (the quick report's, which share a module
+# fixture) stay on one worker.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$root"
@@ -9,4 +12,4 @@ set +u
 # shellcheck disable=SC1091
 source install/setup.bash
 set -u
-exec .venv/bin/python -m pytest "$@"
+exec .venv/bin/python -m pytest -n "${SINS_TEST_WORKERS:-2}" --dist loadgroup "$@"

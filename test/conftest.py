@@ -1,6 +1,8 @@
 """Shared fixtures: a fresh rclpy Context per test on its own DDS domain, data paths."""
+import fcntl
 import itertools
 import os
+import tempfile
 import time
 from pathlib import Path
 
@@ -14,9 +16,76 @@ SHARED_DATA = ROOT.parent / 'shared' / 'data'
 _domain_ids = itertools.count()
 
 
+def _worker_index():
+    """Index of this pytest-xdist worker (``gw0`` -> 0), 0 without xdist."""
+    name = os.environ.get('PYTEST_XDIST_WORKER', 'gw0')
+    return int(name[2:]) if name[2:].isdigit() else 0
+
+
+def _lock_paths(config):
+    """Turnstile and main lock files shared by this run's xdist workers, or None."""
+    workerinput = getattr(config, 'workerinput', None)
+    if workerinput is None:
+        return None
+    base = os.path.join(tempfile.gettempdir(), f"sins_align_tests_{workerinput['testrunuid']}")
+    return base + '.turnstile', base + '.lock'
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    """Under pytest-xdist, run the tests marked ``exclusive`` with no other test beside them.
+
+    The wall-clock paced node tests (the demo at 10x, the simulator node feeding the
+    alignment node) lose samples when another worker loads the second core; every other
+    test holds the main lock shared, an ``exclusive`` one holds it alone. The turnstile
+    keeps a waiting exclusive test from being starved by the other worker's next tests.
+    Wrapping the whole protocol covers module fixtures built in the item's setup.
+    """
+    paths = _lock_paths(item.config)
+    if paths is None:
+        yield
+        return
+    mode = fcntl.LOCK_EX if item.get_closest_marker('exclusive') else fcntl.LOCK_SH
+    with open(paths[0], 'a') as turnstile, open(paths[1], 'a') as main:
+        fcntl.flock(turnstile, fcntl.LOCK_EX)
+        fcntl.flock(main, mode)
+        fcntl.flock(turnstile, fcntl.LOCK_UN)
+        try:
+            yield
+        finally:
+            fcntl.flock(main, fcntl.LOCK_UN)
+
+
+def pytest_collection_modifyitems(config, items):
+    """Run the tests of an xdist group first: they are the run's longest piece of work.
+
+    (``scripts/test.sh`` distributes single tests over two workers; a group, the quick
+    evidence report, is one worker's for a while, so it should not be left for the end.)
+    """
+    items.sort(key=lambda item: item.get_closest_marker('xdist_group') is None)
+
+
+def pytest_unconfigure(config):
+    """Remove this run's lock files (the last worker's removal wins; errors ignored)."""
+    for path in _lock_paths(config) or ():
+        try:
+            os.unlink(path)
+        except OSError:
+            pass
+
+
 def next_domain_id():
-    """A domain id unlikely to be used by a concurrent test run (1..200)."""
-    return 1 + (os.getpid() * 7 + next(_domain_ids)) % 200
+    """A domain id unlikely to be used by a concurrent test (1..149).
+
+    Each xdist worker draws from its own block (``scripts/test.sh`` runs two), so two
+    tests running at the same time never share a domain; within a block the pid spreads
+    concurrent test runs of different checkouts. 150..199 are the demo's
+    (:mod:`sins_align_ros.ros.demo`).
+    """
+    n_blocks = max(1, int(os.environ.get('PYTEST_XDIST_WORKER_COUNT', '1')))
+    size = 149 // n_blocks
+    block = _worker_index() % n_blocks
+    return 1 + block * size + (os.getpid() * 7 + next(_domain_ids)) % size
 
 
 @pytest.fixture

@@ -13,6 +13,7 @@ import pytest
 
 @pytest.mark.ros
 @pytest.mark.slow
+@pytest.mark.exclusive
 def test_demo_aligns_the_swaying_ship_within_the_limit():
     prefix = pytest.importorskip('ament_index_python.packages').get_package_prefix(
         'sins_align_ros')

@@ -30,7 +30,7 @@ from sins_align_ros.ros.simulator_node import SimulatorNode  # noqa: E402
 from sins_align_ros.sim.imu import DPSH, UG  # noqa: E402
 from test_package import resolve_executable  # noqa: E402
 
-pytestmark = pytest.mark.ros
+pytestmark = [pytest.mark.ros, pytest.mark.exclusive]   # wall-clock paced nodes
 ROOT = Path(__file__).resolve().parents[1]
 
 

@@ -20,6 +20,11 @@ import report  # noqa: E402
 from sins_align_ros.nav.frames import ARCMIN  # noqa: E402
 
 
+# under pytest-xdist all of this file's tests share one worker (the quick report is built
+# once) and start first (conftest): it is the longest single piece of the run
+pytestmark = pytest.mark.xdist_group('quick_report')
+
+
 @pytest.fixture(scope='module')
 def quick(tmp_path_factory):
     if report.MODES['quick'].sources[-1][0] == 'pyins':
