@@ -57,12 +57,12 @@ def pytest_runtest_protocol(item, nextitem):
 
 
 def pytest_collection_modifyitems(config, items):
-    """Run the tests of an xdist group first: they are the run's longest piece of work.
+    """Run the modules marked ``first`` first: their shared fixture is the run's longest piece.
 
-    (``scripts/test.sh`` distributes single tests over two workers; a group, the quick
-    evidence report, is one worker's for a while, so it should not be left for the end.)
+    (``scripts/test.sh`` hands whole files to two workers, ``--dist loadfile``; the quick
+    evidence report keeps one worker busy for minutes, so it should not be left for the end.)
     """
-    items.sort(key=lambda item: item.get_closest_marker('xdist_group') is None)
+    items.sort(key=lambda item: item.get_closest_marker('first') is None)
 
 
 def pytest_unconfigure(config):

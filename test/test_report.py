@@ -20,9 +20,9 @@ import report  # noqa: E402
 from sins_align_ros.nav.frames import ARCMIN  # noqa: E402
 
 
-# under pytest-xdist all of this file's tests share one worker (the quick report is built
-# once) and start first (conftest): it is the longest single piece of the run
-pytestmark = pytest.mark.xdist_group('quick_report')
+# the quick report is built once per module; under pytest-xdist (--dist loadfile) this file
+# has one worker and starts first (conftest): it is the longest single piece of the run
+pytestmark = pytest.mark.first
 
 
 @pytest.fixture(scope='module')
