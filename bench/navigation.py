@@ -334,16 +334,15 @@ def main():
              f'--only {args.only}{f" --imu {args.imu}" if args.imu else ""}`; '
              f'{platform.machine()}, {os.cpu_count()} cores, Python '
              f'{platform.python_version()}.', '']
+    flight_scen = 'seed001_flight' + (f'@{args.imu}' if args.imu else '')
     if 'flight' in parts:
-        fl, curves = flight(args.runs, args.procs,
-                            'seed001_flight' + (f'@{args.imu}' if args.imu else ''))
+        fl, curves = flight(args.runs, args.procs, flight_scen)
         lines += fl
         png = Path(args.out).with_name(Path(args.out).stem + '_R.png')
         plot_curves(curves, png)
         lines += [f'R estimate of seed 1 (gate off): `{png.name}`.', '']
     if 'headroom' in parts:
-        lines += headroom(args.runs, args.procs,
-                          'seed001_flight' + (f'@{args.imu}' if args.imu else ''))
+        lines += headroom(args.runs, args.procs, flight_scen)
     if 'tuning' in parts:
         lines += tuning(args.tuning_runs, args.procs)
     if 'car' in parts:
