@@ -1,4 +1,10 @@
-"""The README's generated tables (sensor grades, node parameters) match the code."""
+"""The documentation: generated tables match the code, README commands, size and links.
+
+The README is the entry page (at most 15,000 characters); the reference pages are under
+``docs/``. Generated blocks (``<!-- tag -->`` ... ``<!-- /...`` markers) live on the page
+that documents them: the sensor grades and the simulator's parameters on
+``docs/simulator_node.md``, the alignment node's parameters on ``docs/alignment_node.md``.
+"""
 import re
 from pathlib import Path
 
@@ -9,11 +15,21 @@ from sins_align_ros.sim.presets import SENSOR_GRADES
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / 'README.md').read_text()
+DOCS = ROOT / 'docs'
+README_MAX_CHARS = 15000
+
+#: generated block -> the page it lives on
+BLOCK_PAGES = {
+    'grades': DOCS / 'simulator_node.md',
+    'params:simulator_node': DOCS / 'simulator_node.md',
+    'params:alignment_node': DOCS / 'alignment_node.md',
+}
 
 
 def _block(tag):
-    m = re.search(rf'<!-- {re.escape(tag)} -->\n(.*?)\n<!-- /', README, re.S)
-    assert m, f'README has no <!-- {tag} --> block'
+    page = BLOCK_PAGES[tag]
+    m = re.search(rf'<!-- {re.escape(tag)} -->\n(.*?)\n<!-- /', page.read_text(), re.S)
+    assert m, f'{page.relative_to(ROOT)} has no <!-- {tag} --> block'
     return m.group(1).strip()
 
 
@@ -22,7 +38,7 @@ def _fmt(x):
 
 
 def grades_table():
-    """The sensor-grade table as the README shows it."""
+    """The sensor-grade table as docs/simulator_node.md shows it."""
     rows = ['| grade | gyro bias (deg/h) | gyro ARW (deg/rt-h) | gyro Markov (deg/h, tau s) '
             '| accel bias (ug) | accel VRW (ug/rt-Hz) | accel Markov (ug, tau s) |',
             '|---|---|---|---|---|---|---|']
@@ -49,11 +65,68 @@ def test_readme_parameter_tables_match_declarations(node):
         from sins_align_ros.ros.simulator_node import PARAMS
     else:
         from sins_align_ros.ros.alignment_node import PARAMS
+    page = BLOCK_PAGES[f'params:{node}'].relative_to(ROOT)
     assert _block(f'params:{node}') == markdown_table(PARAMS), (
-        f'README parameter table of {node} is stale; paste markdown_table({node}.PARAMS)')
+        f'{page} parameter table of {node} is stale; paste markdown_table({node}.PARAMS)')
 
 
 def test_readme_commands_exist():
     for cmd in ('scripts/demo.sh', 'scripts/test.sh'):
         assert cmd in README and (ROOT / cmd).exists()
     assert 'scripts/test.sh' in (ROOT / '.ci' / 'run').read_text()
+
+
+def test_readme_is_short():
+    """The entry page stays an entry page; the reference lives in docs/."""
+    size = len((ROOT / 'README.md').read_bytes())        # what `wc -c` counts
+    assert size <= README_MAX_CHARS, (
+        f'README.md has {size} characters (limit {README_MAX_CHARS}): move detail to docs/')
+
+
+def _slug(heading):
+    """GitHub's anchor for a Markdown heading."""
+    text = re.sub(r'`|\*\*|\*', '', heading.strip().lower())
+    text = re.sub(r'\[([^\]]*)\]\([^)]*\)', r'\1', text)
+    return re.sub(r'[^\w\- ]', '', text).replace(' ', '-')
+
+
+def _without_code(text):
+    """The text with fenced code blocks and inline code removed (no links in there)."""
+    text = re.sub(r'^```.*?^```', '', text, flags=re.S | re.M)
+    return re.sub(r'`[^`\n]*`', '', text)
+
+
+def _anchors(path):
+    text = re.sub(r'^```.*?^```', '', path.read_text(), flags=re.S | re.M)
+    return {_slug(h) for h in re.findall(r'^#{1,6}\s+(.+?)\s*#*$', text, re.M)}
+
+
+def _relative_links(path):
+    """(target, fragment) of every relative link and image of a Markdown page."""
+    for target in re.findall(r'\]\(([^)\s]+)(?:\s+"[^"]*")?\)', _without_code(path.read_text())):
+        if re.match(r'[a-z][a-z0-9+.-]*:', target, re.I):            # http:, mailto:, ...
+            continue
+        file, _, fragment = target.partition('#')
+        yield file, fragment
+
+
+DOC_PAGES = [ROOT / 'README.md'] + sorted(DOCS.glob('*.md'))
+
+
+def test_docs_pages_exist():
+    for name in ('design', 'alignment_node', 'simulator_node', 'replay', 'filters', 'results',
+                 'testing'):
+        assert (DOCS / f'{name}.md').is_file(), f'docs/{name}.md missing'
+        assert f'(docs/{name}.md)' in README, f'README does not link docs/{name}.md'
+
+
+@pytest.mark.parametrize('page', DOC_PAGES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_relative_links_point_to_existing_files(page):
+    broken = []
+    for file, fragment in _relative_links(page):
+        target = (page.parent / file).resolve() if file else page
+        if not target.exists():
+            broken.append(f'{file} (no such file)')
+        elif fragment and target.suffix == '.md' and fragment not in _anchors(target):
+            broken.append(f'{file}#{fragment} (no such heading)')
+    assert not broken, f'{page.relative_to(ROOT)}: broken links: {broken}'

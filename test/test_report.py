@@ -1,4 +1,4 @@
-"""The evidence report (issue 8): quick mode end to end, and the README kept in step.
+"""The evidence report (issue 8): quick mode end to end, and docs/results.md kept in step.
 
 ``bench/report.py --quick`` runs every fine filter on short scenarios (2 seeded runs,
 both cores), pyins-generated data and the real recordings, and writes REPORT.md with
@@ -84,10 +84,10 @@ def test_report_has_every_cell_figure_and_recording(quick):
         [s for s in report.MODES['quick'].sources if s[0] == 'sim'])
 
 
-def test_readme_summary_is_the_committed_reports():
-    """README's results table is generated from bench/results/REPORT.md, not typed."""
+def test_results_page_summary_is_the_committed_reports():
+    """docs/results.md's summary table is bench/results/REPORT.md's, not typed."""
     committed = ROOT / 'bench' / 'results' / 'REPORT.md'
-    readme = (ROOT / 'README.md').read_text()
-    assert report.report_block(readme) == report.report_block(committed.read_text())
+    results = (ROOT / 'docs' / 'results.md').read_text()
+    assert report.report_block(results) == report.report_block(committed.read_text())
     assert 'python bench/report.py' in committed.read_text().split('\n', 3)[2]
-    assert '(bench/results/report/sim_seed000_case1.png)' in readme
+    assert '(../bench/results/report/sim_seed000_case1.png)' in results
