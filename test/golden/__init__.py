@@ -1,0 +1,1 @@
+"""Golden replay outputs (CSV) and the table of cases that produces them (:mod:`.cases`)."""
