@@ -3,10 +3,11 @@ import numpy as np
 import pytest
 
 from sins_align_ros.nav import coarse
-from sins_align_ros.nav.frames import ARCMIN, DEG, attitude_error, euler_to_dcm
-from sins_align_ros.sim.imu import DPSH, UG, ImuSpec
+from sins_align_ros.nav.frames import attitude_error, euler_to_dcm
+from sins_align_ros.sim.imu import ImuSpec
 from sins_align_ros.sim.presets import scenario
 from sins_align_ros.sim.scenario import ScenarioStream
+from sins_align_ros.units import ARCMIN, DEG, DPSH, UG
 
 
 def block(name, seconds, seed=1, **overrides):

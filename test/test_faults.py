@@ -19,15 +19,15 @@ from rclpy.parameter import Parameter  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
 from conftest import spin_until  # noqa: E402
-from sins_align_ros.nav.frames import DEG, attitude_error, euler_to_dcm  # noqa: E402
+from sins_align_ros.nav.frames import attitude_error, euler_to_dcm  # noqa: E402
 from sins_align_ros.ros.alignment_node import AlignmentNode  # noqa: E402
 from sins_align_ros.ros.playback import Player  # noqa: E402
 from sins_align_ros.sim.faults import FAULTS, MessageStream, inject  # noqa: E402
 from sins_align_ros.sim.presets import scenario  # noqa: E402
 from sins_align_ros.sim.scenario import ScenarioStream  # noqa: E402
+from sins_align_ros.units import ARCMIN, DEG  # noqa: E402
 
 pytestmark = pytest.mark.ros
-ARCMIN = DEG / 60.0
 WARN, ERROR = DiagnosticStatus.WARN, DiagnosticStatus.ERROR
 _STREAMS = {}
 

@@ -1,7 +1,8 @@
 """Generic filter cores: CKF and SRCKF (seed 000), UKF, strong tracking, Sage-Husa.
 
 Checked against an independent implementation (filterpy 2.0, test-only dependency), the
-linear Kalman filter, and each other.
+linear Kalman filter, and each other; every filter class against the interface the
+alignment engines use (:class:`~sins_align_ros.filters.base.GaussianFilter`).
 """
 import numpy as np
 import pytest
@@ -246,3 +247,54 @@ def test_whiteness_gate_leaves_a_noise_step_to_r_and_fades_a_state_jump():
     assert not faded[100:150].any() and faded[150:200].any()
     g, xg, _ = run(1.0, 1.0, 22, fading=False)
     assert abs(f.x[3] - x[3]) < 0.5 * abs(g.x[3] - xg[3]), (f.x[3] - x[3], g.x[3] - xg[3])
+
+
+def _filters(n=4, M=2):
+    """One instance of every filter the alignment engines drive, on a small linear problem."""
+    from sins_align_ros.filters.asckf import ASCKF
+    from sins_align_ros.filters.ckf import CKF
+    from sins_align_ros.filters.linear_kf import KF
+    from sins_align_ros.filters.mvbakf import MVBAKF
+    from sins_align_ros.filters.ukf import UKF
+    from sins_align_ros.filters.vbakf import VBAKF
+    from sins_align_ros.filters.vbch import VBCH
+    from sins_align_ros.filters.vbckf import VBCKF
+    args = (np.zeros(n), np.eye(n), 0.01 * np.eye(n), 0.1 * np.eye(M))
+    return {'CKF': CKF(*args), 'ASCKF': ASCKF(*args), 'KF': KF(*args), 'VBAKF': VBAKF(*args),
+            'MVBAKF': MVBAKF(*args), 'UKF': UKF(*args), 'VBCKF': VBCKF(*args),
+            'VBCH': VBCH(*args, np.eye(1, n))}
+
+
+@pytest.mark.parametrize('name', ['CKF', 'ASCKF', 'KF', 'VBAKF', 'MVBAKF', 'UKF', 'VBCKF',
+                                  'VBCH'])
+def test_every_filter_has_the_declared_interface(name):
+    """Each filter is a GaussianFilter: predict, step (with a subset and the gate), transform."""
+    from sins_align_ros.filters.base import GaussianFilter, Innovation
+    from sins_align_ros.filters.cubature import batched
+    from sins_align_ros.filters.linear_kf import linear
+    f = _filters()[name]
+    assert isinstance(f, GaussianFilter)
+    assert f.last is None and not f.rejected and f.divergence_flags == 0
+    F = np.eye(4) + 0.1 * np.eye(4, k=1)
+    f.predict(linear(F))
+    upd = f.step(linear(F), np.array([0.3]), batched(lambda X: X[[1]]), np.array([1]))
+    assert isinstance(upd, Innovation) and upd is f.last
+    assert upd.y.shape == (1,) and upd.Pzz.shape == (1, 1)
+    assert f.x.shape == (4,) and f.P.shape == (4, 4) and f.R.shape == (2, 2)
+    f.step(linear(F), np.array([1e3, -1e3]), batched(lambda X: X[:2]), max_nis=10.0)
+    assert f.rejected
+    T = np.diag([1.0, -1.0, 2.0, 1.0])
+    x, P = f.x.copy(), f.P.copy()
+    f.transform(T)
+    np.testing.assert_allclose(f.x, T @ x)
+    np.testing.assert_allclose(f.P, T @ P @ T.T, rtol=1e-12, atol=1e-15)
+
+
+def test_the_old_import_paths_give_the_moved_classes():
+    """Transition (align/ imports them from there): remove with the re-exports."""
+    from sins_align_ros.filters import (asckf, ckf, linear_kf, mvbakf, ukf, vb, vbakf, vbch,
+                                        vbckf)
+    assert asckf.CKF is ckf.CKF
+    assert vbakf.KF is linear_kf.KF and vbakf.linear is linear_kf.linear
+    assert vbakf.MVBAKF is mvbakf.MVBAKF and vbakf.UKF is ukf.UKF
+    assert vb.VBCKF is vbckf.VBCKF and vb.VBCH is vbch.VBCH

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from sins_align_ros.nav import frames as fr
-from sins_align_ros.nav.frames import DEG
+from sins_align_ros.units import DEG
 
 
 def nose(euler):

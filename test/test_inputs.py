@@ -8,10 +8,11 @@ from sins_align_ros.align.gnss_input import GnssInput
 from sins_align_ros.align.imu_input import OK, RESET, SKIP, START, ImuInput
 from sins_align_ros.align.moving import MovingBaseAlignment
 from sins_align_ros.align.pipeline import AlignmentPipeline, feed_arrays
-from sins_align_ros.nav.frames import ARCMIN, attitude_error, euler_to_dcm, quat_to_dcm
+from sins_align_ros.nav.frames import attitude_error, euler_to_dcm, quat_to_dcm
 from sins_align_ros.sim.faults import MessageStream, inject
 from sins_align_ros.sim.presets import scenario
 from sins_align_ros.sim.scenario import ScenarioStream
+from sins_align_ros.units import ARCMIN
 
 
 def _feed(conv, t, w):

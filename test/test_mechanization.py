@@ -3,11 +3,12 @@ import numpy as np
 import pytest
 
 from sins_align_ros.nav import earth
-from sins_align_ros.nav.frames import ARCSEC, DEG, attitude_error, euler_to_dcm, rotvec_to_dcm
+from sins_align_ros.nav.frames import attitude_error, euler_to_dcm, rotvec_to_dcm
 from sins_align_ros.nav.mechanization import MechanizationOptions, Strapdown
 from sins_align_ros.sim.imu import ImuSimulator, ImuSpec
 from sins_align_ros.sim.presets import SEED000_SWAY, Segment, scenario
 from sins_align_ros.sim.trajectory import Sway, Trajectory
+from sins_align_ros.units import ARCSEC, DEG
 
 TRAJECTORIES = {
     'static': Trajectory(34.0, 108.0, 100.0, heading_deg=30.0, pitch_deg=1.0, roll_deg=-2.0),

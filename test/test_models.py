@@ -7,10 +7,11 @@ from scipy.linalg import expm
 from sins_align_ros.filters import kf
 from sins_align_ros.models.stationary import StationaryModel, limits
 from sins_align_ros.nav import earth
-from sins_align_ros.nav.frames import ARCMIN, DEG, attitude_error, euler_to_dcm, rotvec_to_dcm
+from sins_align_ros.nav.frames import attitude_error, euler_to_dcm, rotvec_to_dcm
 from sins_align_ros.nav.mechanization import StationaryStrapdown
-from sins_align_ros.sim.imu import DPH, UG, ImuSimulator, ImuSpec
+from sins_align_ros.sim.imu import ImuSimulator, ImuSpec
 from sins_align_ros.sim.trajectory import Trajectory
+from sins_align_ros.units import ARCMIN, DEG, DPH, DPSH, UG
 
 LAT = 34.0 * DEG
 
@@ -99,7 +100,7 @@ def test_kalman_update_is_the_textbook_scalar_case():
 
 
 def test_limits():
-    tilt, head, noise = limits(LAT, 100 * UG, 0.01 * DPH, 0.001 * DEG / 60, 540.0)
+    tilt, head, noise = limits(LAT, 100 * UG, 0.01 * DPH, 0.001 * DPSH, 540.0)
     assert tilt / ARCMIN == pytest.approx(0.3441, rel=1e-3)   # 100 ug
     assert head / ARCMIN == pytest.approx(2.757, rel=1e-3)    # 0.01 deg/h at 34 deg
     assert noise / ARCMIN == pytest.approx(0.712, rel=1e-2)

@@ -12,10 +12,11 @@ from sins_align_ros.filters.adaptive import SageHusa
 from sins_align_ros.filters.asckf import ASCKF
 from sins_align_ros.filters.cubature import CubatureUpdate, batched
 from sins_align_ros.models import large_azimuth as la
-from sins_align_ros.nav.frames import ARCMIN, DEG, attitude_error, euler_to_dcm, quat_to_dcm
+from sins_align_ros.nav.frames import attitude_error, euler_to_dcm, quat_to_dcm
 from sins_align_ros.nav.mechanization import Strapdown
 from sins_align_ros.sim.presets import noise_window, scenario
 from sins_align_ros.sim.scenario import ScenarioStream
+from sins_align_ros.units import ARCMIN, DEG, DPH, DPSH, UG
 
 MARINE = {'gyro_bias_dph': 0.003, 'gyro_arw_dpsh': 0.0005, 'accel_bias_ug': 30.0,
           'accel_vrw_ug_rthz': 5.0, 'gnss_pos_sigma_m': 0.2}
@@ -137,8 +138,8 @@ def test_fine_filter_recovers_a_large_heading_error(heading_err_deg):
     b = _ship(600.0, seed=2)
     phi0 = np.array([0.03, 0.03, heading_err_deg]) * DEG
     P0 = np.diag(np.r_[[0.1 ** 2] * 2, [2.0 ** 2] * 2, [(0.06 * DEG) ** 2] * 2,
-                       (heading_err_deg * DEG) ** 2, [(0.003 * DEG / 3600) ** 2] * 3])
-    Qc = np.r_[[(5e-6 * 9.8) ** 2] * 2, 0, 0, [(0.0005 * DEG / 60) ** 2] * 3, 0, 0, 0]
+                       (heading_err_deg * DEG) ** 2, [(0.003 * DPH) ** 2] * 3])
+    Qc = np.r_[[(5e-6 * 9.8) ** 2] * 2, 0, 0, [(0.0005 * DPSH) ** 2] * 3, 0, 0, 0]
     eng = MovingBaseAlignment(la.C_n_nprime(phi0) @ euler_to_dcm(b.imu.euler[0]),
                               b.imu.v_n[0], *b.imu.pos[0], P0, Qc, np.eye(2) * 0.04)
     eng.feed(b.imu, b.gnss, b.imu.t[0])
@@ -161,8 +162,8 @@ def test_asckf_learns_a_gnss_noise_rise_over_the_manoeuvre_where_the_ckf_is_misl
     b = ScenarioStream(sc, seed=1).next_block(int(seconds * sc.imu_rate_hz))
     phi0 = np.array([0.03, 0.03, 0.35]) * DEG
     sig0 = np.array([0.06, 0.06, 1.0]) * DEG                 # consistent with phi0
-    P0 = np.diag(np.r_[[0.1 ** 2] * 2, [2.0 ** 2] * 2, sig0 ** 2, [(0.003 * DEG / 3600) ** 2] * 3])
-    Qc = 9.0 * np.r_[[(5e-6 * 9.80665) ** 2] * 2, 0, 0, [(0.0005 * DEG / 60) ** 2] * 3, 0, 0, 0]
+    P0 = np.diag(np.r_[[0.1 ** 2] * 2, [2.0 ** 2] * 2, sig0 ** 2, [(0.003 * DPH) ** 2] * 3])
+    Qc = 9.0 * np.r_[[(5 * UG) ** 2] * 2, 0, 0, [(0.0005 * DPSH) ** 2] * 3, 0, 0, 0]
     R = np.eye(2) * 0.2 ** 2
     err, sig = {}, {}
     for name, improved in (('ckf', False), ('asckf', True)):
@@ -255,6 +256,5 @@ def test_gyro_bias_instability_lets_the_drift_states_follow_a_markov_bias():
     p = AlignmentPipeline(cfg)
     p.start_clock(0.0)
     feed_arrays(p, b.imu, b.gnss)
-    dph = DEG / 3600.0
-    np.testing.assert_allclose(p.engine.Qc[7:], 2.0 * (50.0 * dph) ** 2 / 300.0, rtol=1e-12)
-    assert p.noise.gyro_bias == pytest.approx(np.hypot(200.0, 50.0) * dph)
+    np.testing.assert_allclose(p.engine.Qc[7:], 2.0 * (50.0 * DPH) ** 2 / 300.0, rtol=1e-12)
+    assert p.noise.gyro_bias == pytest.approx(np.hypot(200.0, 50.0) * DPH)

@@ -9,14 +9,18 @@ from sins_align_ros.align.navigation import IntegratedNavigation, gyro_tau, mode
 from sins_align_ros.align.pipeline import AlignmentPipeline, feed_arrays
 from sins_align_ros.filters import kf as lkf
 from sins_align_ros.filters.cubature import batched
-from sins_align_ros.filters.vbakf import KF, MVBAKF, UKF, VBAKF, linear
+from sins_align_ros.filters.linear_kf import KF, linear
+from sins_align_ros.filters.mvbakf import MVBAKF
+from sins_align_ros.filters.ukf import UKF
+from sins_align_ros.filters.vbakf import VBAKF
 from sins_align_ros.models import loosely_coupled as lc
 from sins_align_ros.nav import earth
-from sins_align_ros.nav.frames import DEG, attitude_error, euler_to_dcm, quat_to_dcm, rotvec_to_dcm
+from sins_align_ros.nav.frames import attitude_error, euler_to_dcm, quat_to_dcm, rotvec_to_dcm
 from sins_align_ros.nav.mechanization import Strapdown
-from sins_align_ros.sim.imu import DPH, UG, ImuSimulator, ImuSpec
+from sins_align_ros.sim.imu import ImuSimulator, ImuSpec
 from sins_align_ros.sim.presets import alignment_params, scenario
 from sins_align_ros.sim.scenario import ScenarioStream
+from sins_align_ros.units import DEG, DPH, UG
 
 LAT = 34.0 * DEG
 

@@ -22,12 +22,12 @@ from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus  # noqa: E402
 
 from conftest import spin_until  # noqa: E402
 from sins_align_ros.nav import earth  # noqa: E402
-from sins_align_ros.nav.frames import DEG, nav_to_euler, quat_to_euler  # noqa: E402
+from sins_align_ros.nav.frames import nav_to_euler, quat_to_euler  # noqa: E402
 from sins_align_ros.ros.alignment_node import AlignmentNode  # noqa: E402
 from sins_align_ros.ros.conversions import stamp_to_ns  # noqa: E402
 from sins_align_ros.ros.runner import stop_processes  # noqa: E402
 from sins_align_ros.ros.simulator_node import SimulatorNode  # noqa: E402
-from sins_align_ros.sim.imu import DPSH, UG  # noqa: E402
+from sins_align_ros.units import DEG, DPSH, UG  # noqa: E402
 from test_package import resolve_executable  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.exclusive]   # wall-clock paced nodes
@@ -254,8 +254,9 @@ def test_end_to_end_simulator_and_alignment_node_against_truth(ros_context, doma
     observes the topics.
     """
     from sins_align_ros.align.limits import scenario_limits
-    from sins_align_ros.nav.frames import ARCMIN, attitude_error, quat_to_dcm
+    from sins_align_ros.nav.frames import attitude_error, quat_to_dcm
     from sins_align_ros.sim.presets import scenario
+    from sins_align_ros.units import ARCMIN
     obs = rclpy.create_node('observer', context=ros_context)
     out, truth, diag = [], [], []
     obs.create_subscription(Imu, 'imu/data', out.append,

@@ -5,10 +5,11 @@ import pytest
 from sins_align_ros.align.pipeline import (ALIGNED, COARSE, FINE, AlignmentPipeline, Output,
                                            feed_arrays)
 from sins_align_ros.align.limits import scenario_limits
-from sins_align_ros.nav.frames import (ARCMIN, DEG, attitude_error, euler_error, euler_to_dcm,
-                                       quat_to_dcm, rotvec_to_dcm)
+from sins_align_ros.nav.frames import (attitude_error, euler_error, euler_to_dcm, quat_to_dcm,
+                                       rotvec_to_dcm)
 from sins_align_ros.sim.presets import SENSOR_GRADES, misalignment_rad, scenario
 from sins_align_ros.sim.scenario import ScenarioStream
+from sins_align_ros.units import ARCMIN, DEG
 
 SEED002 = {'initial_latitude_deg': 34.0, 'initial_longitude_deg': 75.0,
            'initial_height_m': 100.0}

@@ -17,8 +17,8 @@ from hypothesis import strategies as st
 from sins_align_ros.align.gnss_input import GnssInput
 from sins_align_ros.align.imu_input import OK, RESET, START, ImuInput
 from sins_align_ros.align.pipeline import AlignmentPipeline
+from sins_align_ros.units import G0
 
-G = 9.80665
 BAD = st.sampled_from([math.nan, math.inf, -math.inf, 1e9, -1e9, 0.0])
 DT = st.sampled_from([0.01] * 12 + [0.0, -0.004, -3.0, 0.8, 0.02, 1e-6])
 
@@ -29,7 +29,7 @@ def _vec(good):
 
 
 GYRO = st.tuples(*[st.floats(-2e-4, 2e-4)] * 3)
-ACC = st.tuples(st.floats(-0.2, 0.2), st.floats(-0.2, 0.2), st.floats(G - 0.2, G + 0.2))
+ACC = st.tuples(st.floats(-0.2, 0.2), st.floats(-0.2, 0.2), st.floats(G0 - 0.2, G0 + 0.2))
 IMU = st.tuples(st.just('imu'), DT, st.one_of(GYRO, GYRO, GYRO, _vec(GYRO)),
                 st.one_of(ACC, ACC, ACC, _vec(ACC)))
 FIX = st.tuples(st.just('fix'), st.one_of(st.floats(30.0, 30.001), BAD, st.just(95.0)),
@@ -93,7 +93,7 @@ def test_the_harness_reaches_fine_alignment_on_good_input(fine_filter):
     """The random sequences above are as long as this one: the fine phase is exercised."""
     lat = math.radians(30.0)
     w_ie = 7.292115e-5 * np.array([0.0, math.cos(lat), math.sin(lat)])
-    good = [('imu', 0.01, tuple(w_ie), (0.0, 0.0, G))] * 99 + [
+    good = [('imu', 0.01, tuple(w_ie), (0.0, 0.0, G0))] * 99 + [
         ('fix', 30.0, 120.0, 5.0), ('vel', 0.0, 0.0)]
     outs, _ = _run(good * 4, fine_filter)
     phases = set(np.concatenate([o.phase for o in outs]))
@@ -103,7 +103,7 @@ def test_the_harness_reaches_fine_alignment_on_good_input(fine_filter):
 
 def test_zero_gyro_output_restarts_coarse_with_a_reason_not_a_nan_attitude():
     """A dead gyro (exact zeros) leaves the analytic coarse alignment without a heading."""
-    dead = [('imu', 0.01, (0.0, 0.0, 0.0), (0.0, 0.0, G))] * 250
+    dead = [('imu', 0.01, (0.0, 0.0, 0.0), (0.0, 0.0, G0))] * 250
     with np.errstate(invalid='ignore'):
         outs, p = _run(dead, 'reduced7')
     phases = np.concatenate([o.phase for o in outs])

@@ -11,9 +11,10 @@ from sins_align_ros.align.limits import scenario_limits
 from sins_align_ros.cli.replay import main as replay
 from sins_align_ros.io.bag import write_scenario_bag
 from sins_align_ros.io.results import COLUMNS, read_csv
-from sins_align_ros.nav.frames import ARCMIN, attitude_error, euler_to_dcm, quat_to_dcm
+from sins_align_ros.nav.frames import attitude_error, euler_to_dcm, quat_to_dcm
 from sins_align_ros.sim.presets import scenario
 from sins_align_ros.sim.scenario import ScenarioStream
+from sins_align_ros.units import ARCMIN
 
 START = 1_700_000_000.0
 

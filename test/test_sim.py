@@ -3,14 +3,15 @@ import numpy as np
 import pytest
 
 from sins_align_ros.nav import earth
-from sins_align_ros.nav.frames import DEG, euler_to_dcm
+from sins_align_ros.nav.frames import euler_to_dcm
 from sins_align_ros.sim.allan import (adev_markov, adev_quantization, adev_white,
                                       allan_deviation)
 from sins_align_ros.sim.gnss import GnssErrors, GnssSpec
-from sins_align_ros.sim.imu import DPH, DPSH, UG, ImuErrors, ImuSimulator, ImuSpec, simulate
+from sins_align_ros.sim.imu import ImuErrors, ImuSimulator, ImuSpec, simulate
 from sins_align_ros.sim.presets import SCENARIOS, SENSOR_GRADES, scenario
 from sins_align_ros.sim.scenario import ScenarioStream
 from sins_align_ros.sim.trajectory import Trajectory
+from sins_align_ros.units import ARCSEC, DEG, DPH, DPSH, G0, KNOT, UG
 
 LAT = 34.0
 
@@ -89,7 +90,7 @@ def test_quantization_keeps_the_remainder_and_has_its_allan_signature():
     arw = 0.08                                           # dithers the counter over LSBs
     spec = ImuSpec(gyro_quant_arcsec=q, gyro_arw_dpsh=arw)
     dth, _ = _noise(spec, n, dt, seed=3)
-    lsb = q * DEG / 3600
+    lsb = q * ARCSEC
     assert np.allclose(dth / lsb, np.round(dth / lsb))   # integer counts
     tau, ad = allan_deviation(dth / dt, dt, [1, 2, 4])
     white = adev_white(arw * DPSH, tau)
@@ -198,6 +199,6 @@ def test_seed000_profile_reaches_plausible_ship_speed():
     sc = scenario('seed000_case1')
     kin = sc.trajectory.kinematics(np.arange(0.0, sc.duration, 0.05))
     speed = np.hypot(kin.v_n[:, 0], kin.v_n[:, 1])
-    assert speed[0] == pytest.approx(5 * 1852 / 3600, rel=1e-6)
+    assert speed[0] == pytest.approx(5 * KNOT, rel=1e-6)
     assert 8.0 < speed.max() < 15.0                     # about 16-29 kn, not 1400 m/s
-    assert np.linalg.norm(kin.a_n, axis=1).max() == pytest.approx(0.1 * 9.80665, rel=0.01)
+    assert np.linalg.norm(kin.a_n, axis=1).max() == pytest.approx(0.1 * G0, rel=0.01)

@@ -7,6 +7,8 @@
 """
 import numpy as np
 
+from .kf import CLIP
+
 
 class StrongTracking:
     """Multiple fading factors (seed 000 eq. 7-17).
@@ -80,8 +82,9 @@ class SageHusa:
         innovations winsorised at ``clip`` times their predicted variance, so that
         one outlier moves R by a bounded factor (not in the seed).
     clip : float
-        Winsorising bound of ``y_i^2 / Pzz_ii`` (default the 99.9% point of
-        chi-square with one degree of freedom).
+        Winsorising bound of ``y_i^2 / Pzz_ii`` (default
+        :data:`~sins_align_ros.filters.kf.CLIP`, the 99.9% point of chi-square with
+        one degree of freedom).
     adapt_q : bool
         Estimate Q as well (eq. 39). Q and R are not separately identifiable from
         the innovations of a weakly observable state; adapting both lets Q absorb
@@ -89,7 +92,7 @@ class SageHusa:
     """
 
     def __init__(self, Q0, R0, b=0.97, gate=True, adapt_q=True, r_ceiling=np.inf,
-                 r_when_identifiable=False, clip=10.83):
+                 r_when_identifiable=False, clip=CLIP):
         self.gate = bool(gate)
         self.r_when_identifiable = bool(r_when_identifiable)
         self.adapt_q = bool(adapt_q)

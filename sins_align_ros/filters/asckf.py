@@ -1,7 +1,8 @@
 """The improved strong-tracking adaptive square-root CKF of seed 000 (sec. 2-3, steps 1-18).
 
 Each improvement can be switched off, so that CKF -> SRCKF -> SRCKF + fading -> ASCKF
-can be compared one step at a time:
+can be compared one step at a time (the conventional CKF is
+:class:`~sins_align_ros.filters.ckf.CKF`):
 
 * square-root CKF with QR ``Tria`` (eq. 23-38);
 * multiple fading factors from the un-faded cubature covariances (eq. 7-17), applied
@@ -16,8 +17,9 @@ import numpy as np
 from scipy.stats import chi2
 
 from .adaptive import SageHusa, StrongTracking
-from .cubature import (chol_lower, ckf_predict, ckf_update, sqrt_psd, srckf_predict,
-                       srckf_update, tria)
+from .base import measurement_rows
+from .ckf import CKF  # transition: align/ still imports this from here  # noqa: F401
+from .cubature import chol_lower, sqrt_psd, srckf_predict, srckf_update, tria
 from .kf import nis
 
 
@@ -35,6 +37,9 @@ def lag1_correlation(w):
 
 class ASCKF:
     """Seed 000's filter; see the module docstring.
+
+    Interface: :class:`~sins_align_ros.filters.base.GaussianFilter` (square-root form:
+    ``P`` is a property over the Cholesky factor ``S``).
 
     Parameters
     ----------
@@ -177,7 +182,7 @@ class ASCKF:
         noise is learnt rather than rejected for ever.
         Returns the :class:`~sins_align_ros.filters.cubature.CubatureUpdate` of the update.
         """
-        idx = np.arange(len(self.R)) if idx is None else np.asarray(idx)
+        idx = measurement_rows(idx, len(self.R))
         SQ, SR = sqrt_psd(self.Q), sqrt_psd(self.R[np.ix_(idx, idx)])
         xp, S_l, chi_star = srckf_predict(self.x, self.S, fx, SQ)               # eq. 23-27
         self.faded, self.white = False, True
@@ -197,41 +202,5 @@ class ASCKF:
         self.x, self.S, upd = srckf_update(xp, S_p, z, hx, SR)                   # eq. 28-38
         if self.adaptive and self.white:
             self.Q, self.R = self.noise.update(upd, idx)                         # eq. 39, 20
-        self.last = upd
-        return upd
-
-
-class CKF:
-    """The conventional cubature Kalman filter (seed 000 eq. 22-34) with ASCKF's interface.
-
-    Covariance form, points re-drawn for the update (eq. 28); fixed Q and R.
-    """
-
-    def __init__(self, x0, P0, Q, R):
-        self.x = np.array(x0, dtype=float)
-        self.P = np.array(P0, dtype=float)
-        self.Q = np.array(Q, dtype=float)
-        self.R = np.array(R, dtype=float)
-        self.lam = None
-        self.divergence_flags = 0
-        self.last = None
-        self.rejected = False
-
-    def transform(self, T):
-        """Change state coordinates: ``x <- T x``, ``P <- T P T^T``."""
-        self.x = T @ self.x
-        self.P = T @ self.P @ T.T
-
-    def predict(self, fx):
-        """Time update only (eq. 23-26)."""
-        self.x, self.P, _ = ckf_predict(self.x, self.P, fx, self.Q)
-
-    def step(self, fx, z, hx, idx=None, max_nis=None):
-        """Time update and measurement update; ``idx``, ``max_nis`` as in :meth:`ASCKF.step`."""
-        idx = np.arange(len(self.R)) if idx is None else np.asarray(idx)
-        xp, Pp, _ = ckf_predict(self.x, self.P, fx, self.Q)
-        x, P, upd = ckf_update(xp, Pp, z, hx, self.R[np.ix_(idx, idx)])
-        self.rejected = max_nis is not None and nis(upd.y, upd.Pzz) > max_nis
-        self.x, self.P = (xp, Pp) if self.rejected else (x, P)
         self.last = upd
         return upd

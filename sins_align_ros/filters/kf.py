@@ -9,6 +9,9 @@ import numpy as np
 from scipy.linalg import expm
 from scipy.stats import chi2
 
+#: winsorisation bound of an innovation squared, in predicted variances (99.9% of chi2(1))
+CLIP = 10.83
+
 
 def predict(x, P, F, Q):
     """Time update: ``x = F x``, ``P = F P F^T + Q``."""

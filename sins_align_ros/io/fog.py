@@ -11,8 +11,9 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..nav.frames import (C_RFU_TO_FLU, DEG, attitude_error, dcm_to_euler, psins_att_to_dcm,
+from ..nav.frames import (C_RFU_TO_FLU, attitude_error, dcm_to_euler, psins_att_to_dcm,
                           quat_to_dcm)
+from ..units import DEG
 
 
 class FogFormatError(ValueError):

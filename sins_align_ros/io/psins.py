@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..nav.frames import ARCSEC, C_RFU_TO_FLU, DEG
+from ..nav.frames import C_RFU_TO_FLU
+from ..units import ARCSEC, DEG
 
 
 class PsinsFormatError(ValueError):

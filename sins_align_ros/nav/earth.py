@@ -10,6 +10,10 @@ Multisensor Integrated Navigation*, ch. 2 (radii of curvature, transport rate).
 """
 import numpy as np
 
+# G0, the conventional standard gravity (unit conversion of micro-g and g only, not the
+# normal gravity below), is defined in sins_align_ros.units
+from ..units import G0  # noqa: F401 (re-exported)
+
 #: semi-major axis (m)
 A = 6378137.0
 #: flattening
@@ -22,8 +26,6 @@ OMEGA_IE = 7.292115e-5
 G_EQUATOR = 9.7803253359
 #: Somigliana constant k = (b*g_pole)/(a*g_eq) - 1
 K_SOMIGLIANA = 0.00193185265241
-#: conventional standard gravity, used for unit conversion (micro-g, g) only
-G0 = 9.80665
 
 
 def radii(lat):

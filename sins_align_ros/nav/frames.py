@@ -20,12 +20,15 @@ Conventions (DESIGN.md):
   nose up) relates to REP-103 by ``C_flu_enu = C_rfu_enu @ C_FLU_TO_RFU``.
 
 Shapes: functions accept a single angle triple (3,) or a stack (N, 3); DCMs are
-(3, 3) or (N, 3, 3); quaternions (4,) or (N, 4).
+(3, 3) or (N, 3, 3); quaternions (4,) or (N, 4). Angle units (``DEG``, ``ARCMIN``,
+``ARCSEC``) are :mod:`sins_align_ros.units`'s.
 """
 import math
 
 import numpy as np
 from scipy.spatial.transform import Rotation
+
+from ..units import ARCMIN, ARCSEC, DEG  # noqa: F401 (re-exported)
 
 # --- fixed frame changes (vector components) --------------------------------
 #: v_flu = C_RFU_TO_FLU @ v_rfu  (right-forward-up body -> forward-left-up body)
@@ -40,10 +43,6 @@ C_FLU_TO_FRD = np.diag([1.0, -1.0, -1.0])
 C_ENU_TO_NED = np.array([[0.0, 1.0, 0.0],
                          [1.0, 0.0, 0.0],
                          [0.0, 0.0, -1.0]])
-
-DEG = np.pi / 180.0
-ARCSEC = DEG / 3600.0
-ARCMIN = DEG / 60.0
 
 
 # --- small-vector algebra ----------------------------------------------------

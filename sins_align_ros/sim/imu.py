@@ -19,12 +19,9 @@ import numpy as np
 from scipy.signal import lfilter
 
 from ..nav import earth
-from ..nav.frames import DEG, euler_rates_to_w_nb_b, euler_to_dcm
+from ..nav.frames import euler_rates_to_w_nb_b, euler_to_dcm
+from ..units import ARCSEC, DPH, DPSH, UG  # DPH, DPSH, UG also imported from here (align/, ros/)
 from .trajectory import PositionIntegrator
-
-DPH = DEG / 3600.0                 # deg/h -> rad/s
-DPSH = DEG / 60.0                  # deg/sqrt(h) -> rad/sqrt(s)
-UG = 1e-6 * earth.G0               # micro-g -> m/s^2
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(4)
 
@@ -184,7 +181,7 @@ class ImuErrors:
                + (self.gyro_bias + gm) * dt + g_white)
         dvel = (dv * (1.0 + _vec3(s.accel_scale_ppm) * 1e-6)
                 + (self.accel_bias + am) * dt + a_white)
-        dth, self._gq = self._quantize(dth, s.gyro_quant_arcsec * DEG / 3600.0, self._gq)
+        dth, self._gq = self._quantize(dth, s.gyro_quant_arcsec * ARCSEC, self._gq)
         dvel, self._aq = self._quantize(dvel, s.accel_quant_mps, self._aq)
         return dth, dvel
 

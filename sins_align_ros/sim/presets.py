@@ -29,12 +29,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..nav.frames import DEG
+from ..units import DEG, G0, KNOT
 from .gnss import GnssSpec
 from .imu import ImuSpec
 from .trajectory import Segment, Sway, Trajectory
-
-KNOT = 1852.0 / 3600.0
 
 SENSOR_GRADES = {
     'navigation': ImuSpec(gyro_bias_dph=0.01, gyro_arw_dpsh=0.001,
@@ -125,7 +123,7 @@ def seed000_profile():
     then ship-like accelerations: 60 s at 5 kn; 5 s at 0.1 g (+4.9 m/s, ~14.5 kn);
     400 s at 0.01 m/s^2 (+4 m/s, ~22 kn); cruise; 300 s at -0.01 m/s^2; cruise.
     """
-    return [Segment(60.0), Segment(5.0, accel=0.1 * 9.80665, ramp=1.0),
+    return [Segment(60.0), Segment(5.0, accel=0.1 * G0, ramp=1.0),
             Segment(200.0), Segment(400.0, accel=0.01), Segment(300.0),
             Segment(300.0, accel=-0.01), Segment(175.0)]
 

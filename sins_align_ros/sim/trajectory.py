@@ -20,7 +20,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from ..nav import earth
-from ..nav.frames import DEG, nav_to_euler
+from ..nav.frames import nav_to_euler
+from ..units import DEG, G0
 
 
 @dataclass(frozen=True)
@@ -214,8 +215,8 @@ class Trajectory:
         roll = np.full_like(t, self.roll_deg * DEG)
         droll = np.zeros_like(t)
         if self.coordinated_bank:
-            q = V * dchi / earth.G0
-            dq = (dV * dchi + V * ddchi) / earth.G0
+            q = V * dchi / G0
+            dq = (dV * dchi + V * ddchi) / G0
             roll += np.arctan(q)
             droll += dq / (1.0 + q * q)
         pitch = gam + self.pitch_deg * DEG
