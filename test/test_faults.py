@@ -139,7 +139,7 @@ def test_imu_and_clock_faults_are_reported_and_survived(rig_factory, fault):
     rig.play(s, 40.0)
     rig.flush_diagnostics()
     assert rig.said(level, needle), rig.messages()
-    assert rig.node.input.counts[key] >= 1
+    assert rig.node.session.imu_input.counts[key] >= 1
     if restarts:
         assert rig.said(WARN, 'alignment restarted'), rig.messages()
     else:
@@ -195,7 +195,7 @@ def test_gnss_faults_are_reported_and_the_ship_alignment_recovers(rig_factory, f
     rig.flush_diagnostics()
     assert rig.said(level, needle), rig.messages()
     if key is not None:
-        assert rig.node.gnss.counts[key] >= 1
+        assert rig.node.session.gnss_input.counts[key] >= 1
     st = rig.node.pipeline.status()
     assert st['phase'] in ('fine', 'aligned') and st['gnss_consecutive_rejects'] == 0
     if fault == 'gnss_outliers':
@@ -215,7 +215,7 @@ def test_gnss_stamps_repeated_or_ahead_of_the_imu_are_skipped(rig_factory):
     rig = rig_factory(**SHIP)
     rig.play(s)
     rig.flush_diagnostics()
-    assert rig.node.gnss.counts['stamp_not_increasing'] >= 4
+    assert rig.node.session.gnss_input.counts['stamp_not_increasing'] >= 4
     assert rig.said(WARN, 'stamp not increasing'), rig.messages()
     assert rig.said(WARN, 'ahead of the IMU clock'), rig.messages()
     rig.check_attitude(s, head_margin=3.0 * ARCMIN)
@@ -226,7 +226,7 @@ def test_fine_filter_changed_at_runtime_restarts_cleanly(rig_factory):
     s = _stream('static_navigation', 100.0, 85.0)
     rig = rig_factory(**STILL)
     rig.play(s, -np.inf, 40.0)
-    assert rig.node.pipeline.model.name == 'reduced7' and rig.node.pipeline.phase == 'fine'
+    assert rig.node.pipeline.cfg['fine_filter'] == 'reduced7' and rig.node.pipeline.phase == 'fine'
     with pytest.raises(InvalidParameterValueException, match='max_gap out of range'):
         AlignmentNode(context=rig.node.context, parameter_overrides=[
             Parameter('max_gap', value=100.0)])
@@ -234,7 +234,7 @@ def test_fine_filter_changed_at_runtime_restarts_cleanly(rig_factory):
     assert not bad.successful and 'coarse_duration' in bad.reason
     ok = rig.node.set_parameters([Parameter('fine_filter', value='stationary10')])[0]
     assert ok.successful
-    assert rig.node.pipeline.model.name == 'stationary10'
+    assert rig.node.pipeline.cfg['fine_filter'] == 'stationary10'
     rig.play(s, 40.0)
     rig.flush_diagnostics()
     assert rig.said(WARN, 'parameters changed: fine_filter'), rig.messages()

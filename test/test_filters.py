@@ -288,13 +288,3 @@ def test_every_filter_has_the_declared_interface(name):
     f.transform(T)
     np.testing.assert_allclose(f.x, T @ x)
     np.testing.assert_allclose(f.P, T @ P @ T.T, rtol=1e-12, atol=1e-15)
-
-
-def test_the_old_import_paths_give_the_moved_classes():
-    """Transition (align/ imports them from there): remove with the re-exports."""
-    from sins_align_ros.filters import (asckf, ckf, linear_kf, mvbakf, ukf, vb, vbakf, vbch,
-                                        vbckf)
-    assert asckf.CKF is ckf.CKF
-    assert vbakf.KF is linear_kf.KF and vbakf.linear is linear_kf.linear
-    assert vbakf.MVBAKF is mvbakf.MVBAKF and vbakf.UKF is ukf.UKF
-    assert vb.VBCKF is vbckf.VBCKF and vb.VBCH is vbch.VBCH

@@ -7,7 +7,8 @@ import pytest
 from sins_align_ros.align.gnss_input import GnssInput
 from sins_align_ros.align.imu_input import OK, RESET, SKIP, START, ImuInput
 from sins_align_ros.align.moving import MovingBaseAlignment
-from sins_align_ros.align.pipeline import AlignmentPipeline, feed_arrays
+from sins_align_ros.align.pipeline import AlignmentPipeline
+from sins_align_ros.align.session import feed_arrays
 from sins_align_ros.nav.frames import attitude_error, euler_to_dcm, quat_to_dcm
 from sins_align_ros.sim.faults import MessageStream, inject
 from sins_align_ros.sim.presets import scenario
@@ -162,7 +163,7 @@ def test_forced_acceptances_without_recovery_restart_alignment():
         for k in range(1, 20):
             # a fix that walks away 1 km per epoch: never consistent again
             eng.update(GnssFix(0.01 * k, 0.5 + k * 1.6e-4, 2.0, 0.0), 0.01 * k)
-    assert eng.n_forced == 2
+    assert eng.gate.n_forced == 2
 
 
 def test_feed_arrays_and_message_stream_agree():

@@ -60,7 +60,7 @@ def test_ukf_node_publishes_odometry_at_imu_rate_against_truth(ros_context):
     last = odom[-1]
     assert last.header.frame_id == 'car_odom' and last.child_frame_id == 'imu_link'
     k = int(np.argmin(np.abs(block.imu.t - t[-1])))
-    lat0, lon0, h0 = node._odom_origin
+    lat0, lon0, h0 = node.odom.origin
     truth = earth.local_offset_m(lat0, lon0, h0, *(block.imu.pos[k:k + 1].T))[0]
     p = last.pose.pose.position
     cov = np.array(last.pose.covariance).reshape(6, 6)

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from sins_align_ros.align.navigation import IntegratedNavigation, gyro_tau, model_noise
-from sins_align_ros.align.pipeline import AlignmentPipeline, feed_arrays
+from sins_align_ros.align.pipeline import AlignmentPipeline
+from sins_align_ros.align.session import feed_arrays
 from sins_align_ros.filters import kf as lkf
 from sins_align_ros.filters.cubature import batched
 from sins_align_ros.filters.linear_kf import KF, linear
@@ -220,7 +221,7 @@ def test_markov_compensation_decays_with_its_correlation_time():
     eng.nab[:] = 2.0
     for _ in range(100):                                # 1 s without GNSS
         eng.step_imu(np.zeros(3), np.array([0, 0, 9.8 * 0.01]), 0.01)
-    eng._restart_interval()
+    eng.predict()                                       # an epoch without GNSS
     assert eng.eps_markov == pytest.approx(np.exp(-1.0 / 100.0), rel=1e-9)
     assert eng.nab == pytest.approx(2 * np.exp(-1.0 / 1000.0), rel=1e-9)
     with pytest.raises(ValueError):
@@ -246,9 +247,8 @@ def test_a_constant_bias_folded_into_the_markov_state_keeps_the_markov_drive():
     eng = IntegratedNavigation(np.eye(3), np.zeros(3), LAT, 0.0, 0.0, P0, Qc, np.eye(6),
                                method='kf', tau_g=tau)
     eng.eps_markov[:] = 200 * DPH
-    for _ in range(855):
-        eng._T = 1.0
-        eng._restart_interval()
+    for _ in range(855):                                # 1-s samples: an epoch every 2 s
+        eng.step_imu(np.zeros(3), np.array([0.0, 0.0, 9.8]), 1.0)
     assert np.all(eng.eps_markov > 0.84 * 200 * DPH)
 
 

@@ -148,25 +148,25 @@ def test_invalid_parameters_are_refused_with_a_reason(ros_context):
     res = sim.set_parameters([Parameter('real_time_factor', value=-1.0)])[0]
     assert not res.successful and res.reason
     res = sim.set_parameters([Parameter('real_time_factor', value=2.0)])[0]
-    assert res.successful and sim._rtf == 2.0
+    assert res.successful and sim.get_parameter('real_time_factor').value == 2.0
     node = AlignmentNode(context=ros_context)
     res = node.set_parameters([Parameter('fine_filter', value='magic')])[0]
     assert not res.successful and 'fine_filter' in res.reason
     res = node.set_parameters([Parameter('initial_latitude_deg', value=95.0)])[0]
     assert not res.successful
     res = node.set_parameters([Parameter('fine_filter', value='mvbakf')])[0]
-    assert res.successful and node.pipeline.moving
+    assert res.successful and node.pipeline.aided
     res = node.set_parameters([Parameter('fine_filter', value='stationary12')])[0]
-    assert res.successful and node.pipeline.model.name == 'stationary12'
+    assert res.successful and node.pipeline.cfg['fine_filter'] == 'stationary12'
     res = node.set_parameters([Parameter('fine_filter', value='asckf')])[0]
-    assert res.successful and node.pipeline.moving
+    assert res.successful and node.pipeline.aided
     res = node.set_parameters([Parameter('fine_filter', value='vbch')])[0]
-    assert res.successful and node.pipeline.moving
+    assert res.successful and node.pipeline.aided
 
 
 def test_moving_base_diagnostics_carry_the_asckf_internals(ros_context):
     """fine_filter asckf: /diagnostics has fading factors, Q/R diagonals, NIS, test count."""
-    from sins_align_ros.align.pipeline import feed_arrays
+    from sins_align_ros.align.session import feed_arrays
     from sins_align_ros.sim.presets import scenario
     from sins_align_ros.sim.scenario import ScenarioStream
     node = AlignmentNode(context=ros_context, parameter_overrides=[
@@ -206,7 +206,7 @@ def test_alignment_node_reports_waiting_then_counts_imu(ros_context):
     assert st.level == DiagnosticStatus.WARN
     ex.add_node(sim)
     assert spin_until(ex, lambda: node.counts['imu'] > 300, timeout_s=30.0)
-    assert node.input.rejected == 0
+    assert node.session.imu_input.rejected == 0
     ex.shutdown()
 
 
@@ -346,7 +346,8 @@ def test_reset_service_restarts_alignment(ros_context):
     ex.add_node(node)
     ex.add_node(client_node)
     assert spin_until(ex, lambda: cli.service_is_ready(), timeout_s=10.0)
-    node.pipeline.phase = 'fine'
+    node.pipeline.process([0.01, 0.02], np.zeros((2, 3)), [[0.0, 0.0, 0.098]] * 2)
+    assert node.pipeline.phase == 'coarse'
     fut = cli.call_async(Trigger.Request())
     assert spin_until(ex, fut.done, timeout_s=10.0)
     assert fut.result().success

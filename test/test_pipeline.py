@@ -2,8 +2,9 @@
 import numpy as np
 import pytest
 
-from sins_align_ros.align.pipeline import (ALIGNED, COARSE, FINE, AlignmentPipeline, Output,
-                                           feed_arrays)
+from sins_align_ros.align.output import Output
+from sins_align_ros.align.pipeline import ALIGNED, COARSE, FINE, AlignmentPipeline
+from sins_align_ros.align.session import feed_arrays
 from sins_align_ros.align.limits import scenario_limits
 from sins_align_ros.nav.frames import (attitude_error, euler_error, euler_to_dcm, quat_to_dcm,
                                        rotvec_to_dcm)
@@ -46,7 +47,7 @@ def test_seed002_fine_alignment_ends_at_the_sensor_limit(model, mis):
         assert np.all(np.abs(err[12000:, 2]) <= band[2])
     else:
         # 10/12 states restart their misalignment covariance at each stage (honest sigma,
-        # see AlignmentPipeline._restage): the heading may leave the band for a while, but
+        # see StationaryEngine.restage): the heading may leave the band for a while, but
         # never its own 3 sigma
         assert np.all(np.abs(err[12000:]) <= 3.0 * sig[12000:])
     assert out.phase[-1] == ALIGNED

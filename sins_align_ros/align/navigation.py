@@ -13,8 +13,8 @@ Markov parts of the compensation decay with their correlation time, as the expec
 value of a first-order Markov process does, so the residual error keeps the model's
 dynamics.
 
-The GNSS bookkeeping (intervals without a fix, the innovation gate with forced
-acceptances) is :class:`~sins_align_ros.align.moving.MovingBaseAlignment`'s. The
+The IMU-rate driver and the GNSS bookkeeping (intervals without a fix, the innovation
+gate with forced acceptances) are :class:`~.aided.GnssAidedEngine`'s. The
 navigation solution is the mechanization's at every IMU sample (100 Hz at a 100 Hz
 IMU, seed 003's output rate).
 """
@@ -23,15 +23,18 @@ import math
 import numpy as np
 
 from ..filters.cubature import batched
-from ..filters.vbakf import KF, MVBAKF, UKF, VBAKF, linear
+from ..filters.linear_kf import KF, linear
+from ..filters.mvbakf import MVBAKF
+from ..filters.ukf import UKF
+from ..filters.vbakf import VBAKF
 from ..models import large_misalignment as lm
 from ..models import loosely_coupled as lc
 from ..nav import earth
 from ..nav.frames import orthonormalize, rotvec_to_dcm
-from .moving import GnssFix, MovingBaseAlignment
-
-#: the navigation filters by ``fine_filter`` name
-NAV_FILTERS = ('kf', 'vbakf', 'mvbakf', 'ukf')
+from ..units import DPH, UG
+from .aided import GnssAidedEngine
+from .gnss_gate import GnssGate
+from .params import NAV_FILTERS
 
 
 def gyro_tau(n_states, gyro, tau_g):
@@ -63,7 +66,7 @@ def model_noise(n_states, sigma_phi, sigma_v, sigma_p, gyro, accel, gyro_arw, ac
     with Q nine times the truth). Sigmas have floors of 1e-3 deg/h and 1 micro-g (a
     zero variance makes the sigma points degenerate).
     """
-    g_floor, a_floor = 1e-3 * math.pi / 180 / 3600, 1e-6 * earth.G0
+    g_floor, a_floor = 1e-3 * DPH, UG
     s_a = max(math.hypot(*accel), a_floor)
     q_a = lc.markov_q(s_a, tau_a)
     if n_states == 15:
@@ -80,7 +83,7 @@ def model_noise(n_states, sigma_phi, sigma_v, sigma_p, gyro, accel, gyro_arw, ac
     return P0, Qc
 
 
-class IntegratedNavigation(MovingBaseAlignment):
+class IntegratedNavigation(GnssAidedEngine):
     """Mechanization + seed 001/003 filter; see the module docstring.
 
     Parameters
@@ -99,71 +102,62 @@ class IntegratedNavigation(MovingBaseAlignment):
         Correlation times of the Markov gyro and accelerometer errors, s.
     rho, n_iter, tau, moment
         VB forgetting factor, fixed-point iterations, MVBAKF's P(k|k-1) tuning factor and
-        posterior moment (:class:`~sins_align_ros.filters.vbakf.MVBAKF`).
+        posterior moment (:class:`~sins_align_ros.filters.mvbakf.MVBAKF`).
     use_velocity : bool
         Measure GNSS velocity when the epoch has one.
     gate_probability, gate_max_rejects
-        As :class:`~sins_align_ros.align.moving.MovingBaseAlignment` (None: no gate).
+        The GNSS innovation gate (None: off), :class:`~.gnss_gate.GnssGate`.
     """
 
     i_phi, i_v = lc.I_PHI, lc.I_V
-    gate_sizes = (3, 6)
+    navigates = True
 
     def __init__(self, C_b_n, v_n, lat, lon, h, P0, Qc, R, method='mvbakf', tau_g=300.0,
                  tau_a=3600.0, rho=0.95, n_iter=5, tau=6.0, moment='mean', use_velocity=True,
                  gate_probability=None, gate_max_rejects=10):
         if method not in NAV_FILTERS:
             raise ValueError(f'unknown navigation filter {method!r}')
-        super().__init__(C_b_n, v_n, lat, lon, h, P0, Qc, R, use_velocity=use_velocity,
-                         square_root=False, gate_probability=gate_probability,
-                         gate_max_rejects=gate_max_rejects)
         self.method = method
         self.n = len(P0)
-        self.tau_g, self.tau_a = float(tau_g), float(tau_a)
         x0 = np.zeros(self.n)
-        Q = np.diag(self.Qc)
+        Q = np.diag(np.asarray(Qc, dtype=float))
         if method == 'kf':
-            self.kf = KF(x0, P0, Q, R)
+            kf = KF(x0, P0, Q, R)
         elif method == 'vbakf':
-            self.kf = VBAKF(x0, P0, Q, R, rho=rho, n_iter=n_iter)
+            kf = VBAKF(x0, P0, Q, R, rho=rho, n_iter=n_iter)
         elif method == 'mvbakf':
-            self.kf = MVBAKF(x0, P0, Q, R, tau=tau, rho=rho, n_iter=n_iter, moment=moment)
+            kf = MVBAKF(x0, P0, Q, R, tau=tau, rho=rho, n_iter=n_iter, moment=moment)
         else:
-            self.kf = UKF(x0, P0, Q, R)
+            kf = UKF(x0, P0, Q, R)
+        self.tau_g, self.tau_a = float(tau_g), float(tau_a)
         self.i_eps = lc.I_EPS15 if self.n == 15 else lc.I_EPSB
-        self.rows = lc.MEAS_STATES
         #: sensor compensation: gyro constant, gyro Markov, accelerometer (body, SI)
         self.eps_const = np.zeros(3)
         self.eps_markov = np.zeros(3)
         self.nab = np.zeros(3)
-        self._C_sum = np.zeros((3, 3))
         self._F = None
+        super().__init__(C_b_n, v_n, lat, lon, h, kf, Qc, R, rows=lc.MEAS_STATES,
+                         gate=GnssGate(gate_probability, gate_max_rejects, sizes=(3, 6)),
+                         use_velocity=use_velocity, attitude_sums=True)
 
     # -- IMU rate ---------------------------------------------------------------------
-    def step_imu(self, dtheta, dv, dt):
-        """Mechanize one sample corrected by the sensor-error estimates; returns ``C_b_n``."""
-        return super().step_imu(dtheta - (self.eps_const + self.eps_markov) * dt,
-                                dv - self.nab * dt, dt)
+    def _correct_imu(self, dtheta, dv, dt):
+        """Return the increments corrected by the sensor-error estimates."""
+        return dtheta - (self.eps_const + self.eps_markov) * dt, dv - self.nab * dt
 
-    def _accumulate(self, C, dt):
-        super()._accumulate(C, dt)
-        self._C_sum += C * dt
-
-    def _restart_interval(self):
-        """Start a new interval; the Markov compensation decays over the one that ended."""
-        T = self._T
+    def _interval_ended(self, T):
+        """Decay the Markov compensation over the interval that ended."""
         if T > 0.0:
             self.eps_markov *= math.exp(-T / self.tau_g)
             self.nab *= math.exp(-T / self.tau_a)
-        super()._restart_interval()
-        self._C_sum = np.zeros((3, 3))
 
     def _transition(self):
-        T = self._T
+        s = self.sums
+        T = s.T
         if T <= 0.0:
             self._F = np.zeros((self.n, self.n))
             return linear(np.eye(self.n))
-        f_n, v_n, C = self._dv_sum / T, self._v_sum / T, self._C_sum / T
+        f_n, v_n, C = s.dv_sum / T, s.v_sum / T, s.C_sum / T
         C = orthonormalize(C)
         m = self.mech
         self._F = lc.F_matrix(C, f_n, v_n, m.lat, m.h, self.tau_g, self.tau_a, self.n)
@@ -175,7 +169,7 @@ class IntegratedNavigation(MovingBaseAlignment):
 
     def _set_process_noise(self):
         """Q of the interval: trapezoid of ``Phi Qc Phi^T`` and ``Qc`` over its length T."""
-        T = max(self._T, 1e-3)
+        T = max(self.sums.T, 1e-3)
         Qc = np.diag(self.Qc)
         Phi = lc.transition(self._F, T) if self._F is not None else np.eye(self.n)
         Q = 0.5 * (Phi @ Qc @ Phi.T + Qc) * T
@@ -210,15 +204,10 @@ class IntegratedNavigation(MovingBaseAlignment):
             m.C_b_n = orthonormalize(lm.C_n_nprime(x[lc.I_PHI]).T @ m.C_b_n)
         else:
             m.C_b_n = orthonormalize(rotvec_to_dcm(x[lc.I_PHI]) @ m.C_b_n)
-        dv = x[lc.I_V].copy()
-        m.v_n = m.v_n - dv
-        m._v_prev = m._v_prev - dv
+        m.correct_velocity(x[lc.I_V].copy())
         R_M, R_N = earth.radii(m.lat)
-        dpos = np.array([x[7] / (R_M + m.h), x[6] / ((R_N + m.h) * math.cos(m.lat)), x[8]])
-        m.lat -= dpos[0]
-        m.lon -= dpos[1]
-        m.h -= dpos[2]
-        m._pos_prev = m._pos_prev - dpos
+        m.correct_position(np.array([x[7] / (R_M + m.h), x[6] / ((R_N + m.h) * math.cos(m.lat)),
+                                     x[8]]))
         if self.n == 15:
             self.eps_markov += x[lc.I_EPS15]
             self.nab += x[lc.I_NAB15]
@@ -228,19 +217,7 @@ class IntegratedNavigation(MovingBaseAlignment):
             self.nab += x[lc.I_NAB18]
         kf.x = np.zeros(self.n)
 
-    @staticmethod
-    def _gnss_fix(gnss, i):
-        """Epoch ``i`` (with its velocity when the arrays have one); None without a fix."""
-        if hasattr(gnss, 'fix') and not gnss.fix[i]:
-            return None
-        v = gnss.v_n[i] if hasattr(gnss, 'v_n') else None
-        return GnssFix(gnss.t[i], gnss.lat[i], gnss.lon[i], gnss.h[i], v)
-
     # -- output -------------------------------------------------------------------------
-    def attitude_cov(self):
-        """Misalignment covariance about ENU (3, 3), rad^2."""
-        return self.kf.P[lc.I_PHI, lc.I_PHI]
-
     def nav_cov(self):
         """Return the covariance (9, 9) of position, velocity and misalignment errors.
 
@@ -258,9 +235,8 @@ class IntegratedNavigation(MovingBaseAlignment):
     def status(self):
         """Filter internals for diagnostics: the base ones plus the sensor estimates."""
         s = super().status()
-        dph = math.pi / 180.0 / 3600.0
-        s['gyro_drift_dph'] = [float(v) for v in self.gyro_bias / dph]
-        s['accel_bias_ug'] = [float(v) for v in self.nab / (earth.G0 * 1e-6)]
+        s['gyro_drift_dph'] = [float(v) for v in self.gyro_bias / DPH]
+        s['accel_bias_ug'] = [float(v) for v in self.nab / UG]
         s['R_sigma'] = [float(v) for v in np.sqrt(np.diag(self.kf.R))]
         if isinstance(self.kf, MVBAKF):
             s['P_pred_trace_ratio'] = self.kf.p_ratio

@@ -153,7 +153,17 @@ ALIGNMENT_PARAMS = (
           1, 1000),
 )
 
+#: parameters of the alignment node only (its ROS interface); the shared presets in
+#: config/ may set them, and the replay tool accepts and ignores them
+NODE_PARAMS = (
+    Param('imu_frame_id', '', 'expected frame_id of imu/data_raw (empty: accept any)'),
+    Param('diagnostic_period', 1.0, 'period of /diagnostics, s', 0.05, 60.0),
+    Param('odom_frame_id', 'odom', 'frame_id of ~/odom: ENU axes, origin where fine '
+          'alignment started'),
+)
+
 _BY_NAME = {p.name: p for p in ALIGNMENT_PARAMS}
+_NODE_BY_NAME = {p.name: p for p in NODE_PARAMS}
 
 
 def defaults():
@@ -178,21 +188,39 @@ def validate(values):
     return out
 
 
+def split_node_params(values):
+    """Split ``values`` into (alignment parameters, node-only parameters), both checked.
+
+    Raises ``ValueError`` for an unknown name or a bad node-only value; the
+    alignment values are checked by :func:`validate`.
+    """
+    node = {}
+    for k in [k for k in values if k in _NODE_BY_NAME]:
+        err = _NODE_BY_NAME[k].check(values[k])
+        if err:
+            raise ValueError(err)
+        node[k] = values[k]
+    return validate({k: v for k, v in values.items() if k not in node}), node
+
+
 def parse_value(name, text):
-    """Convert ``--set name=value`` text to the parameter's type."""
-    p = _BY_NAME.get(name)
+    """Convert ``--set name=value`` text to the parameter's type (the value is read as YAML)."""
+    p = _BY_NAME.get(name) or _NODE_BY_NAME.get(name)
     if p is None:
         raise ValueError(f'unknown parameter {name!r}')
-    if isinstance(p.default, bool):
-        if text.lower() in ('true', '1', 'yes'):
-            return True
-        if text.lower() in ('false', '0', 'no'):
-            return False
-        raise ValueError(f'{name} expects true/false, got {text!r}')
+    if isinstance(p.default, str):
+        return text
     try:
-        return type(p.default)(text)
-    except ValueError:
-        raise ValueError(f'{name} expects a {type(p.default).__name__}, got {text!r}') from None
+        value = yaml.safe_load(text)
+    except yaml.YAMLError:
+        raise ValueError(f'{name}: cannot read {text!r} as a value') from None
+    if isinstance(p.default, bool) and type(value) is int and value in (0, 1):
+        return bool(value)
+    if isinstance(p.default, float) and type(value) is int:
+        return float(value)
+    if type(value) is not type(p.default):
+        raise ValueError(f'{name} expects a {type(p.default).__name__}, got {text!r}')
+    return value
 
 
 def load_yaml(path, node_name='alignment_node'):

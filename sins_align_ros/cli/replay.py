@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from ..align import params as prm
-from ..align.gnss_input import GnssInput
-from ..align.imu_input import OK, RESET, START, ImuInput
-from ..align.pipeline import AlignmentPipeline, Output
+from ..align.output import Output
+from ..align.pipeline import AlignmentPipeline
+from ..align.session import AlignmentSession
 from ..io.bag import BagError, iter_bag
 from ..io.psins import PsinsFormatError, read_psins
 from ..io.report import plot_report
@@ -49,8 +49,12 @@ def _parser():
     return ap
 
 
-def load_parameters(params_file, sets):
-    """Parameter dict from a YAML file and ``name=value`` overrides, validated."""
+def load_parameters(params_file, sets, log=lambda m: None):
+    """Alignment parameter dict from a YAML file and ``name=value`` overrides, validated.
+
+    Parameters of the node's ROS interface (``odom_frame_id``, ...) that a shared
+    preset may hold are checked and left out (said through ``log``).
+    """
     values = {}
     if params_file:
         values.update(prm.load_yaml(params_file))
@@ -59,11 +63,14 @@ def load_parameters(params_file, sets):
             raise ValueError(f'--set expects name=value, got {item!r}')
         k, v = item.split('=', 1)
         values[k.strip()] = prm.parse_value(k.strip(), v.strip())
-    return prm.validate(values)
+    values, node_only = prm.split_node_params(values)
+    if node_only:
+        log(f'node-only parameters not used by the replay: {", ".join(sorted(node_only))}')
+    return values
 
 
 def replay_psins(path, values, log, duration=None):
-    """Run a PSINS log; returns (Output, pipeline)."""
+    """Run a PSINS log; returns (Output, pipeline, None)."""
     rec = read_psins(path)
     v = dict(values)
     if 'initial_latitude_deg' not in v:
@@ -80,31 +87,20 @@ def replay_psins(path, values, log, duration=None):
 
 
 def replay_bag(path, values, args, log):
-    """Run a rosbag2; returns (Output, pipeline, truth) with truth (t, q) or None.
+    """Run a rosbag2 through an :class:`AlignmentSession`; returns (Output, pipeline, truth).
 
-    IMU and GNSS messages pass the node's input checks (the first occurrence of
-    each reason is logged, the counts at the end). A fault part-way through
-    raises :class:`BagError` with ``.partial`` set to the (Output, pipeline,
-    truth) computed so far.
+    ``truth`` is a list of (t, q) or empty. IMU and GNSS messages pass the node's input
+    checks (the first occurrence of each reason is logged, the counts at the end). A
+    fault part-way through raises :class:`BagError` with ``.partial`` set to the
+    (Output, pipeline, truth) computed so far.
     """
-    full = prm.defaults()
-    full.update(values)
-    pipe = AlignmentPipeline(values)
-    conv = ImuInput.from_params(full)
-    gnss = GnssInput()
-    outs, buf, truth, seen = [], [], [], set()
+    session = AlignmentSession(values, block=_CHUNK)
+    outs, truth, seen = [], [], set()
 
-    def flush():
-        if buf:
-            t = np.array([b[0] for b in buf])
-            outs.append(pipe.feed(t, np.array([b[1] for b in buf]),
-                                  np.array([b[2] for b in buf])))
-            buf.clear()
-
-    def report(checker, source):
-        for key, text in checker.pop_notices():
-            if key not in seen:
-                seen.add(key)
+    def report():
+        for source, key, text in session.notices():
+            if (source, key) not in seen:
+                seen.add((source, key))
                 log(f'{source}: {text} (first occurrence; counted at the end)')
 
     try:
@@ -116,54 +112,29 @@ def replay_bag(path, values, args, log):
                 break
             if ev.kind == 'imu':
                 w, f, _, missing = ev.data
-                if missing:
-                    action = conv.reject_missing_field()[0]
-                else:
-                    action, dth, dv = conv.push(ev.t, w, f)
-                if action == OK:
-                    if conv.bridge is not None:
-                        flush()
-                        pipe.widen(*conv.bridge)
-                    buf.append((ev.t, dth, dv))
-                    if len(buf) >= _CHUNK:
-                        flush()
-                elif action in (RESET, START):
-                    flush()
-                    if action == RESET:
-                        old, pipe = pipe, AlignmentPipeline(values)
-                        pipe.inherit_gnss(old)
-                    pipe.start_clock(ev.t)
-                report(conv, 'imu')
+                outs.append(session.reject_missing_field() if missing
+                            else session.imu(ev.t, w, f))
             elif ev.kind == 'fix':
-                status, lat, lon, h, pos_var = ev.data
-                var = gnss.fix(ev.t, status, lat, lon, h, pos_var)
-                if var is not False:
-                    flush()
-                    pipe.position_fix(ev.t, lat, lon, h, pos_var=var)
-                report(gnss, 'gnss')
+                outs.append(session.fix(ev.t, *ev.data))
             elif ev.kind == 'vel':
-                v_n, vel_var = ev.data
-                var = gnss.velocity(ev.t, v_n, vel_var)
-                if var is not False:
-                    flush()
-                    pipe.velocity_fix(ev.t, v_n, vel_var=var)
-                report(gnss, 'gnss')
+                outs.append(session.velocity(ev.t, *ev.data))
             else:
                 truth.append((ev.t, ev.data[0]))
-        flush()
-        outs.append(pipe.flush())           # samples still in the pre-processing stage
+            report()
+        outs.append(session.finish())
     except BagError as exc:
-        flush()
-        exc.partial = (Output.concat(outs), pipe, truth)
+        outs.append(session.finish())
+        exc.partial = (Output.concat(outs), session.pipeline, truth)
         raise
     finally:
-        counts = {f'imu {k}': v for k, v in conv.counts.items()
+        imu_counts, gnss_counts = session.input_counts()
+        counts = {f'imu {k}': v for k, v in imu_counts.items()
                   if k not in ('accepted', 'clock_start')}
-        counts.update({f'gnss {k}': v for k, v in gnss.counts.items()
+        counts.update({f'gnss {k}': v for k, v in gnss_counts.items()
                        if not k.startswith('accepted')})
         if counts:
             log('input faults: ' + ', '.join(f'{k} {v}' for k, v in sorted(counts.items())))
-    return Output.concat(outs), pipe, truth
+    return Output.concat(outs), session.pipeline, truth
 
 
 def _truth_euler(out, truth):
@@ -197,7 +168,7 @@ def main(argv=None):
     log = (lambda m: None) if args.quiet else (lambda m: print(f'sins_align_replay: {m}',
                                                                file=sys.stderr))
     try:
-        values = load_parameters(args.params, args.set)
+        values = load_parameters(args.params, args.set, log)
     except (ValueError, OSError) as exc:
         print(f'sins_align_replay: error: {exc}', file=sys.stderr)
         return 2
@@ -221,7 +192,7 @@ def main(argv=None):
         write_csv(args.out, out, every=args.every)
         if args.report and len(out.t):
             plot_report(args.report, out, _truth_euler(out, truth),
-                        title=f'{Path(args.input).name}: {pipe.model.name}')
+                        title=f"{Path(args.input).name}: {pipe.cfg['fine_filter']}")
     except OSError as exc:
         print(f'sins_align_replay: error: cannot write output: {exc}', file=sys.stderr)
         return 1

@@ -18,7 +18,6 @@ from scipy.stats import chi2
 
 from .adaptive import SageHusa, StrongTracking
 from .base import measurement_rows
-from .ckf import CKF  # transition: align/ still imports this from here  # noqa: F401
 from .cubature import chol_lower, sqrt_psd, srckf_predict, srckf_update, tria
 from .kf import nis
 

@@ -10,9 +10,6 @@ R (:mod:`~sins_align_ros.filters.linear_kf`). Seed 001's modified filter is
 import numpy as np
 
 from .linear_kf import KF, rejected_noise
-from .linear_kf import linear  # transition: align/ still imports this from here  # noqa: F401
-from .mvbakf import MVBAKF  # transition: align/ still imports this from here  # noqa: F401
-from .ukf import UKF  # transition: align/ still imports this from here  # noqa: F401
 from .variational import prior_alpha, vb_update
 
 

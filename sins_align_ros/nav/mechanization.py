@@ -101,6 +101,35 @@ class Strapdown:
         """``[lat, lon, h]`` (rad, rad, m)."""
         return np.array([self.lat, self.lon, self.h])
 
+    # -- closed-loop feedback: the one way filters correct the navigator's state ------------
+    def correct_velocity(self, dv_n):
+        """Remove an estimated ENU velocity error ``dv_n`` (3,) m/s.
+
+        The previous velocity used for the mid-interval extrapolation moves with it,
+        so the next step does not see the correction as an acceleration.
+        """
+        self.v_n = self.v_n - dv_n
+        self._v_prev = self._v_prev - dv_n
+
+    def correct_position(self, dpos):
+        """Remove an estimated position error ``dpos`` (3,) (rad, rad, m); history moves too."""
+        self.lat -= dpos[0]
+        self.lon -= dpos[1]
+        self.h -= dpos[2]
+        self._pos_prev = self._pos_prev - dpos
+
+    def reset_position(self, lat, lon, h):
+        """Put the position at ``lat``, ``lon``, ``h`` (rad, rad, m); history moves by as much."""
+        new = np.array([lat, lon, h])
+        self._pos_prev = self._pos_prev + (new - np.array([self.lat, self.lon, self.h]))
+        self.lat, self.lon, self.h = (float(v) for v in new)
+
+    def hold_vertical(self, h, v_up):
+        """Hold the vertical channel to an external height ``h`` (m) and up velocity (m/s)."""
+        self.h = h
+        self.v_n[2] = v_up
+        self._pos_prev[2] = h
+
     def reset_history(self):
         """Forget the previous increments (use after a gap in the data)."""
         self._dtheta_prev = np.zeros(3)

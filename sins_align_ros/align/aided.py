@@ -1,0 +1,266 @@
+"""What every GNSS-aided engine shares: IMU-rate mechanization, GNSS epochs, feedback.
+
+The full strapdown mechanization runs at IMU rate; the samples between two filter
+epochs are summed (:class:`IntervalSums`: length, specific-force increment,
+velocity and attitude integrals) so the error model can be propagated over the
+interval at its mean values; at every GNSS epoch the filter predicts over the
+interval, updates with the engine's measurement (gated by a
+:class:`~.gnss_gate.GnssGate`) and the engine feeds the estimate back into the
+mechanization through :class:`~sins_align_ros.nav.mechanization.Strapdown`'s
+correction methods. Without GNSS for :data:`MAX_PREDICT` seconds the filter
+predicts without an update, so an outage only widens the covariance.
+
+:class:`GnssAidedEngine` is the driver; each family (seed 000's 10 states
+:mod:`.moving`, seed 004's 12 :mod:`.robust`, seeds 001/003's 15/18
+:mod:`.navigation`) builds its filter and supplies the hooks ``_transition``,
+``measurement`` and ``_feedback`` (and optionally ``_correct_imu``,
+``_set_process_noise``, ``_interval_ended``).
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..filters.cubature import batched
+from ..filters.kf import nis
+from ..nav.mechanization import MechanizationOptions, Strapdown
+from ..units import DPH
+from .gnss_gate import FilterDiverged
+
+#: the longest interval the error model is propagated without a measurement, s
+MAX_PREDICT = 2.0
+
+
+@dataclass
+class GnssFix:
+    """One GNSS epoch: position (rad, rad, m), optional ENU velocity (3,) and variances.
+
+    ``pos_var`` (2,): east and north position variance (m^2) the receiver reports,
+    or None; ``vel_var`` (2,): east and north velocity variance ((m/s)^2) or None.
+    """
+
+    t: float
+    lat: float
+    lon: float
+    h: float
+    v_n: np.ndarray = None
+    pos_var: np.ndarray = None
+    vel_var: np.ndarray = None
+
+
+class IntervalSums:
+    """Sums over the samples since the last filter epoch.
+
+    ``T`` (s), ``dv_sum`` (3,) specific-force increments in ENU, ``v_sum`` (3,)
+    velocity integral, and with ``attitude`` the attitude integral ``C_sum`` (3, 3).
+    """
+
+    def __init__(self, attitude=False):
+        self.attitude = bool(attitude)
+        self.restart()
+
+    def restart(self):
+        """Start a new interval."""
+        self.T = 0.0
+        self.dv_sum = np.zeros(3)
+        self.v_sum = np.zeros(3)
+        self.C_sum = np.zeros((3, 3)) if self.attitude else None
+
+    def add(self, mech, C, dt):
+        """Add one mechanized sample (attitude ``C`` (3, 3), interval ``dt``)."""
+        self.T += dt
+        self.dv_sum += mech.dv_sf
+        self.v_sum += mech.v_n * dt
+        if self.attitude:
+            self.C_sum += C * dt
+
+
+class GnssAidedEngine:
+    """Mechanization + error-state filter at GNSS epochs; see the module docstring.
+
+    Parameters
+    ----------
+    C_b_n, v_n, lat, lon, h
+        Initial attitude (body FLU -> ENU), ENU velocity (m/s), position (rad, rad, m).
+    kf
+        The filter (:class:`~sins_align_ros.filters.base.GaussianFilter`).
+    Qc : ndarray (n,)
+        Continuous-time noise densities (per second).
+    R : ndarray (m, m)
+        Nominal measurement noise.
+    rows : ndarray
+        State rows measured by the full measurement vector.
+    gate : GnssGate
+    attitude_sums : bool
+        Also sum the attitude over each interval (models linear in it).
+    adaptive, use_reported_cov : bool
+        The filter estimates Q itself (Q is then not set per interval); R is taken from
+        each fix's reported variances.
+    """
+
+    #: misalignment, velocity-error and gyro-drift slices of the state (set by families)
+    i_phi = i_v = i_eps = None
+    #: the engine keeps navigating after alignment (``~/odom``, navigation CSV columns)
+    navigates = False
+    #: the aided filters run one stage (only the stationary filter is re-initialised)
+    restages = False
+    #: the model estimates the accelerometer bias (else bias / g is added to the tilt)
+    has_accel_bias = True
+
+    def __init__(self, C_b_n, v_n, lat, lon, h, kf, Qc, R, rows, gate, use_velocity=False,
+                 attitude_sums=False, adaptive=False, use_reported_cov=False):
+        self.mech = Strapdown(C_b_n, v_n, lat, lon, h, MechanizationOptions())
+        self.kf = kf
+        self.Qc = np.asarray(Qc, dtype=float)
+        self.R_nominal = np.asarray(R, dtype=float).copy()
+        self.rows = np.asarray(rows)
+        self.gate = gate
+        self.use_velocity = bool(use_velocity)
+        self.adaptive = bool(adaptive)
+        self.use_reported_cov = bool(use_reported_cov) and not self.adaptive
+        self.sums = IntervalSums(attitude_sums)
+        self.n_updates = 0
+        self.n_predict_only = 0
+        self.last_nis = float('nan')
+
+    # -- IMU rate -------------------------------------------------------------------
+    def step_imu(self, dtheta, dv, dt):
+        """Mechanize one sample; returns the current ``C_b_n`` (3, 3)."""
+        dtheta, dv = self._correct_imu(dtheta, dv, dt)
+        m = self.mech
+        C = m.step(dtheta, dv, dt)
+        self.sums.add(m, C, dt)
+        if self.sums.T >= MAX_PREDICT:
+            self.predict()
+        return C
+
+    def predict(self):
+        """Predict over the interval so far without a measurement (an epoch without GNSS)."""
+        fx = self._transition()
+        self._set_process_noise()
+        self.kf.predict(fx)
+        self.n_predict_only += 1
+        self._restart_interval()
+
+    def _correct_imu(self, dtheta, dv, dt):
+        """Sensor compensation before the mechanization (none by default)."""
+        return dtheta, dv
+
+    def _set_process_noise(self):
+        """Q of the interval since the last epoch; an adaptive filter keeps its estimate."""
+        if not self.adaptive:
+            self.kf.Q = np.diag(self.Qc * max(self.sums.T, 1e-3))
+
+    def _restart_interval(self):
+        self._interval_ended(self.sums.T)
+        self.sums.restart()
+
+    def _interval_ended(self, T):
+        """Act on the end of an interval of ``T`` seconds (before the sums restart)."""
+
+    def _transition(self):
+        raise NotImplementedError
+
+    def measurement(self, fix, t_now):
+        """Innovation ``(z, idx)`` of ``fix``: ``idx`` the rows of the full vector present."""
+        raise NotImplementedError
+
+    def _feedback(self, fix):
+        """Move the estimate into the mechanization; ``fix`` None after a rejected epoch."""
+        raise NotImplementedError
+
+    # -- GNSS epochs ------------------------------------------------------------------
+    def update(self, fix, t_now):
+        """Filter epoch for ``fix``: predict over the interval, update, feed back.
+
+        Returns the filter's update record. Raises :class:`FilterDiverged` on
+        non-finite or singular numbers and when the gate gives up (``GnssGate``).
+        """
+        z, idx = self.measurement(fix, t_now)
+        fx = self._transition()
+        rows = self.rows[idx]
+        hx = batched(lambda X: X[rows])
+        kf = self.kf
+        self._set_process_noise()
+        if self.use_reported_cov:          # never for an adaptive filter (see __init__)
+            kf.R = self.R_nominal.copy()
+            if fix.pos_var is not None:
+                kf.R[0, 0], kf.R[1, 1] = fix.pos_var
+            if self.use_velocity and fix.vel_var is not None:
+                kf.R[2, 2], kf.R[3, 3] = fix.vel_var
+        max_nis = self.gate.threshold(len(idx), kf)
+        try:
+            upd = kf.step(fx, z, hx, idx, max_nis=max_nis)
+            self.last_nis = nis(upd.y, upd.Pzz)
+        except (np.linalg.LinAlgError, ValueError):
+            upd = None
+        if upd is None or not (np.all(np.isfinite(kf.x)) and np.all(np.isfinite(kf.P))):
+            raise FilterDiverged(f'filter diverged at t={fix.t:.3f} s (non-finite or '
+                                 f'singular covariance)')
+        self._restart_interval()
+        if kf.rejected:
+            self.gate.rejected(fix.t, self.last_nis, max_nis, rows, upd.y)
+            self._feedback(None)
+            return upd
+        self.n_updates += 1
+        self.gate.accepted()
+        self._feedback(fix)
+        return upd
+
+    def feed(self, imu, gnss, t0):
+        """Run samples 1..N-1 of ``imu`` (``t``, ``dtheta``, ``dv``) from stamp ``t0 = imu.t[0]``.
+
+        GNSS epochs of ``gnss`` (``t``, ``lat``, ``lon``, ``h``; rad, rad, m; with
+        ``v_n`` and ``fix`` when the arrays have them) after ``t0`` are applied at the
+        first sample at or past their stamp. Raises :class:`FilterDiverged` as
+        :meth:`update` does.
+        """
+        gi, t_prev = 0, t0
+        for k in range(1, len(imu.t)):
+            t = imu.t[k]
+            self.step_imu(imu.dtheta[k], imu.dv[k], t - t_prev)
+            t_prev = t
+            while gi < len(gnss.t) and gnss.t[gi] <= t + 1e-9:
+                fix = self._gnss_fix(gnss, gi) if gnss.t[gi] > t0 else None
+                if fix is not None:
+                    self.update(fix, t)
+                gi += 1
+
+    @staticmethod
+    def _gnss_fix(gnss, i):
+        """Epoch ``i`` of the arrays given to :meth:`feed` as a :class:`GnssFix` (or None)."""
+        if hasattr(gnss, 'fix') and not gnss.fix[i]:
+            return None
+        v = gnss.v_n[i] if hasattr(gnss, 'v_n') else None
+        return GnssFix(gnss.t[i], gnss.lat[i], gnss.lon[i], gnss.h[i], v)
+
+    # -- output -------------------------------------------------------------------------
+    @property
+    def P(self):
+        """Error-state covariance (n, n)."""
+        return self.kf.P
+
+    def attitude_cov(self):
+        """Misalignment covariance about ENU (3, 3), rad^2."""
+        return self.kf.P[self.i_phi, self.i_phi]
+
+    def widen(self, var_phi, var_v):
+        """Add ``var_phi`` (rad^2) to each misalignment and ``var_v`` to each velocity variance."""
+        P = self.kf.P
+        k = np.arange(len(P))
+        P[k[self.i_phi], k[self.i_phi]] += var_phi
+        P[k[self.i_v], k[self.i_v]] += var_v
+        self.kf.P = P
+
+    def status(self):
+        """Filter internals for diagnostics (plain Python types)."""
+        kf = self.kf
+        s = {'filter_updates': self.n_updates, 'predict_only_epochs': self.n_predict_only,
+             'innovation_nis': self.last_nis, 'divergence_test_fired': kf.divergence_flags,
+             'Q_diag': [float(v) for v in np.diag(kf.Q)],
+             'R_diag': [float(v) for v in np.diag(kf.R)],
+             'gyro_drift_dph': [float(v) for v in kf.x[self.i_eps] / DPH]}
+        s.update(self.gate.status())
+        if getattr(kf, 'lam', None) is not None:
+            s['fading_factors'] = [float(v) for v in kf.lam]
+            s['fading_epochs'] = int(kf.n_faded)
+        return s

@@ -1,0 +1,189 @@
+"""The coarse stage: collect the coarse window, then find the attitude and its sigma.
+
+Still base (the stationary filters): analytic (TRIAD) or inertial-frame coarse
+alignment (``coarse_method``; ``auto`` picks by detecting motion in the window).
+Moving base (the GNSS-aided filters): the inertial-frame method with the GNSS
+velocity change removed, and the heading taken from the GNSS track when the
+vehicle moves faster than ``track_min_speed_mps``.
+
+The sigma handed to the fine filter is a conservative bound on what the coarse
+method leaves (:func:`coarse_sigma`), so the fine filter starts honest.
+"""
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..nav import coarse, earth
+from ..nav.frames import dcm_to_euler, euler_to_dcm
+from ..units import DEG, DPH
+
+
+@dataclass
+class CoarseResult:
+    """What the coarse stage hands to the fine filter.
+
+    ``C_b_n`` (3, 3) body FLU -> ENU; ``sigma`` (3,) rad; ``v_n`` (3,) ENU velocity at
+    the end of the window (zero on a still base); ``position`` (3,) rad, rad, m;
+    ``sigma_v`` m/s the velocity's sigma; ``info`` for diagnostics; ``warnings``.
+    """
+
+    C_b_n: np.ndarray
+    sigma: np.ndarray
+    position: np.ndarray
+    v_n: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    sigma_v: float = 0.01
+    info: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
+
+
+class CoarseWindow:
+    """The samples of the coarse window, ``duration`` seconds from ``t_first``."""
+
+    def __init__(self, duration):
+        self.duration = float(duration)
+        self.parts = []
+        self.T = 0.0
+
+    def take(self, t, dtheta, dv, i, t_last):
+        """Take samples from index ``i`` until the window is full; returns the end index."""
+        j, n = i, len(t)
+        need = self.duration - self.T
+        while j < n and need > 1e-9:
+            need -= t[j] - (t_last if j == i else t[j - 1])
+            j += 1
+        self.T += t[j - 1] - t_last
+        self.parts.append((t[i:j], dtheta[i:j], dv[i:j]))
+        return j
+
+    @property
+    def full(self):
+        return self.T >= self.duration - 1e-9
+
+    def arrays(self, t_first):
+        """Stamps (N,), increments (N, 3), (N, 3) and intervals (N,) of the window."""
+        tt = np.concatenate([c[0] for c in self.parts])
+        dth = np.concatenate([c[1] for c in self.parts])
+        dvv = np.concatenate([c[2] for c in self.parts])
+        return tt, dth, dvv, np.diff(np.concatenate([[t_first], tt]))
+
+
+def coarse_sigma(noise, T, lat, moving, cap=30.0 * DEG):
+    """Conservative 1-sigma misalignment (3,) rad after coarse alignment over T seconds.
+
+    Returns ``(sigma, warning or None)``: the warning says when the gyro bias is not
+    small against the horizontal Earth rate (no heading on a still base).
+    """
+    g = earth.gravity(lat, 0.0)
+    wc = earth.OMEGA_IE * np.cos(lat)
+    tilt = 3.0 * np.hypot(noise.accel_bias / g, noise.accel_vrw / (g * np.sqrt(T)))
+    head = 3.0 * np.hypot(noise.gyro_bias, noise.gyro_arw / np.sqrt(T)) / wc
+    head += abs(np.tan(lat)) * tilt
+    if moving:
+        tilt, head = 2.0 * tilt, 2.0 * head
+    tilt = max(tilt, 0.05 * DEG)
+    head = min(max(head, 0.5 * DEG), cap)
+    warning = None
+    if noise.gyro_bias > 0.5 * wc:
+        warning = (f'gyro bias {noise.gyro_bias / DPH:.3g} deg/h is not small against the '
+                   f'horizontal Earth rate {wc / DPH:.3g} deg/h: heading cannot be found on a '
+                   f'still base (motion with GNSS aiding is needed)')
+    return np.array([tilt, tilt, head]), warning
+
+
+def steady_velocity(V, v_sig):
+    """Tell whether the horizontal velocity (N, 3) is constant within its noise ``v_sig``.
+
+    Then the inertial-frame coarse alignment is better off assuming no velocity
+    change than subtracting a noisy one: its heading signal after T seconds is only
+    about g W cos(L) T^2 / 2 (1 m/s at 60 s), so 0.05 m/s of noise on the first
+    velocity alone would turn the heading by degrees.
+    """
+    dev = V[:, :2] - V[:, :2].mean(axis=0)
+    return bool(np.mean(np.sum(dev * dev, axis=1)) < 2.0 * (2.0 * v_sig * v_sig))
+
+
+def degenerate(C):
+    """Reason why a coarse attitude is unusable (non-finite), or None."""
+    if np.all(np.isfinite(C)):
+        return None
+    return ('coarse alignment degenerate: no usable gravity or Earth-rate direction in the '
+            'window (gyro or accelerometer output near zero?)')
+
+
+def still_base(window, cfg, noise, position):
+    """Coarse alignment for the stationary filters: (CoarseResult or None, info, reason)."""
+    tt, dth, dvv, dts = window
+    lat, _, h = position
+    method = cfg['coarse_method']
+    moving, rate_sc, tilt_sc = coarse.detect_motion(dth, dvv, dts, noise.gyro_arw,
+                                                    noise.accel_vrw)
+    if method == 'auto':
+        method = 'inertial_frame' if moving else 'analytic'
+    if method == 'analytic':
+        C = coarse.analytic(dth, dvv, dts, lat)
+    else:
+        C = coarse.inertial_frame(dth, dvv, dts, lat, h)
+    T = float(np.sum(dts))
+    info = _info(method, moving, rate_sc, tilt_sc, T)
+    reason = degenerate(C)
+    if reason:
+        return None, info, reason
+    sigma, warning = coarse_sigma(noise, T, lat, moving)
+    return CoarseResult(C, sigma, position, info=info,
+                        warnings=[warning] if warning else []), info, None
+
+
+def moving_base(window, cfg, noise, position, gnss, t_now):
+    """Coarse alignment for the GNSS-aided filters: (CoarseResult or None, info, reason).
+
+    ``gnss`` is the :class:`~.gnss_buffer.GnssBuffer`; ``t_now`` the last IMU stamp (the
+    position is moved from the last fix's stamp to it).
+    """
+    tt, dth, dvv, dts = window
+    lat, lon, h = position
+    moving, rate_sc, tilt_sc = coarse.detect_motion(dth, dvv, dts, noise.gyro_arw,
+                                                    noise.accel_vrw)
+    T = float(np.sum(dts))
+    info = _info('inertial_frame', moving, rate_sc, tilt_sc, T)
+    V, v_sig, v_src = gnss.velocity_over(tt, cfg['gnss_vel_sigma_mps'], cfg['gnss_pos_sigma_m'])
+    steady = V is not None and steady_velocity(V, v_sig)
+    dv_n = None if V is None or steady else V - V[0]
+    C = coarse.inertial_frame(dth, dvv, dts, lat, h, dv_n=dv_n)
+    reason = degenerate(C)
+    if reason:
+        return None, info, reason
+    sigma, warning = coarse_sigma(noise, T, lat, moving, cap=90.0 * DEG)
+    warnings = [warning] if warning else []
+    if dv_n is not None:
+        # the GNSS velocity noise enters the fit against the horizontal gravity
+        # integral, which grows as g W cos(L) T^2 / 2 (about 1 m/s after 60 s)
+        signal = earth.gravity(lat, h) * earth.OMEGA_IE * math.cos(lat) * T * T / 2.0
+        sigma[2] = min(math.hypot(sigma[2], 3.0 * math.sqrt(2.0) * v_sig / signal), 90.0 * DEG)
+    if V is None and moving:
+        sigma[:2] *= 3.0
+        warnings.append('the base moves and no GNSS velocity covers the coarse window: '
+                        'tilt from specific force alone')
+    v_end = np.zeros(3) if V is None else V[-1]
+    speed = float(np.hypot(v_end[0], v_end[1]))
+    head_src = 'inertial_frame'
+    if V is not None and speed >= cfg['track_min_speed_mps']:
+        eul = dcm_to_euler(C)
+        eul[2] = math.atan2(v_end[1], v_end[0])
+        C = euler_to_dcm(eul)
+        sigma[2] = cfg['track_heading_sigma_deg'] * DEG
+        head_src = 'gnss_track'
+    if gnss.last_fix is not None and cfg['use_gnss_position']:
+        t_f = gnss.last_fix[0]
+        R_M, R_N = earth.radii(lat)
+        lat += v_end[1] * (t_now - t_f) / (R_M + h)
+        lon += v_end[0] * (t_now - t_f) / ((R_N + h) * math.cos(lat))
+    info.update({'velocity_source': v_src, 'heading_source': head_src, 'speed_mps': speed,
+                 'steady_velocity': bool(steady)})
+    s_v = 0.5 if v_sig is None else max(2.0 * v_sig, 0.02)
+    return CoarseResult(C, sigma, np.array([lat, lon, h]), v_end, s_v, info, warnings), info, None
+
+
+def _info(method, moving, rate_sc, tilt_sc, T):
+    return {'method': method, 'motion_detected': moving, 'rate_scatter_dph': rate_sc / DPH,
+            'tilt_scatter_urad': tilt_sc * 1e6, 'duration_s': T}

@@ -1,0 +1,176 @@
+"""The fine stage: an engine stepped at IMU rate, its GNSS epochs, convergence, rows.
+
+Two ways of stepping, by the engine's kind: the stationary engine mechanizes whole
+blocks between its own filter epochs (vectorised); the GNSS-aided engines step
+sample by sample and take each queued GNSS epoch at the first sample at or past its
+stamp. Either way, every filter epoch is followed by the convergence check
+(:class:`~.convergence.ConvergenceMonitor`): a converged stage restages the
+stationary filter (up to ``max_stages``) or turns ``fine`` into ``aligned``.
+
+A filter failure (:class:`~.gnss_gate.FilterDiverged`) ends the stage: the methods
+return its reason and the pipeline restarts from coarse alignment.
+"""
+import math
+
+import numpy as np
+
+from .convergence import ConvergenceMonitor
+from .gnss_gate import FilterDiverged
+from .output import Rows, one_row
+
+FINE, ALIGNED = 'fine', 'aligned'
+
+
+class Clock:
+    """Stamps of the pipeline: the first sample's interval start and the last sample (s)."""
+
+    def __init__(self):
+        self.t_first = None
+        self.t_last = None
+
+
+class FineStage:
+    """One engine from the end of coarse alignment on; see the module docstring.
+
+    ``floor`` (3,) variances (rad^2) added to the engine's attitude covariance;
+    ``clock`` the pipeline's :class:`Clock` (its ``t_last`` is advanced here).
+    """
+
+    def __init__(self, engine, floor, clock, cfg):
+        self.engine = engine
+        self.floor = np.asarray(floor, dtype=float)
+        self.clock = clock
+        self.phase = FINE
+        self.stage = 1
+        self.t0 = clock.t_last
+        self.max_stages = cfg['max_stages']
+        self.monitor = ConvergenceMonitor(cfg['stage_min_duration'])
+        self.monitor.start(self.t0)
+        #: the navigation solution goes out with the rows (``~/odom``)
+        self.navigating = engine.navigates and cfg['continue_navigation']
+        self._att_cov = None
+
+    @property
+    def mech(self):
+        return self.engine.mech
+
+    def attitude_cov(self):
+        """Misalignment covariance about ENU (3, 3) with the floor; cached between epochs."""
+        if self._att_cov is None:
+            self._att_cov = self.engine.attitude_cov() + np.diag(self.floor)
+        return self._att_cov
+
+    def widen(self, var_phi, var_v):
+        """Widen the engine's covariance by an error the input may have left (a bridge)."""
+        if var_phi > 0.0 or var_v > 0.0:
+            self.engine.widen(var_phi, var_v)
+            self._att_cov = None
+
+    def _epoch_done(self, t):
+        """After a filter epoch at ``t``: the convergence check."""
+        self._att_cov = None
+        sig_u = math.sqrt(max(self.attitude_cov()[2, 2], 0.0))
+        if not self.monitor.converged(t, sig_u):
+            return
+        if self.engine.restages and self.stage < self.max_stages:
+            self.engine.restage()
+            self._att_cov = None
+            self.stage += 1
+            self.monitor.start(t)
+        elif self.phase == FINE:
+            self.phase = ALIGNED
+
+    # -- stepping --------------------------------------------------------------------------
+    def run(self, t, dtheta, dv, i, gnss):
+        """Process samples from index ``i``: returns ``(parts, end index, diverged reason)``.
+
+        ``parts`` are :class:`~.output.Rows`; on a divergence the rows end with the sample
+        at which it happened and the reason is a string (else None).
+        """
+        if self.engine.restages:
+            c = self.clock
+            j, C, epoch = self.engine.run_block(t, dtheta, dv, i, c.t_last)
+            c.t_last = t[j - 1]
+            if epoch:
+                self._epoch_done(c.t_last)
+            return [Rows(t[i:j], C, self.attitude_cov(), self.phase)], j, None
+        return self._run_aided(t[i:], dtheta[i:], dv[i:], gnss, i)
+
+    def _run_aided(self, t, dtheta, dv, gnss, offset):
+        eng, c = self.engine, self.clock
+        m = eng.mech
+        n = len(t)
+        Cs = np.empty((n, 3, 3))
+        nav = np.empty((n, 6)) if self.navigating else None
+        parts, start = [], 0
+        n_pred = eng.n_predict_only
+        for k in range(n):
+            tk = t[k]
+            Cs[k] = eng.step_imu(dtheta[k], dv[k], tk - c.t_last)
+            c.t_last = tk
+            if eng.n_predict_only != n_pred:     # an epoch without GNSS: the sigma grew
+                n_pred = eng.n_predict_only
+                if k > start:
+                    parts.append(Rows(t[start:k], Cs[start:k], self.attitude_cov(), self.phase,
+                                      None if nav is None else nav[start:k]))
+                    start = k
+                self._att_cov = None
+            if gnss.due(tk):
+                if k > start:
+                    parts.append(Rows(t[start:k], Cs[start:k], self.attitude_cov(), self.phase,
+                                      None if nav is None else nav[start:k]))
+                    start = k
+                reason = self._apply_gnss(tk, gnss)
+                Cs[k] = m.C_b_n
+                if reason is not None:
+                    if nav is not None:
+                        nav[k] = np.nan
+                    parts.append(Rows(t[start:k + 1], Cs[start:k + 1], eng.attitude_cov(),
+                                      FINE, None if nav is None else nav[start:k + 1]))
+                    return parts, offset + k + 1, reason
+            if nav is not None:
+                v = m.v_n
+                nav[k] = (m.lat, m.lon, m.h, v[0], v[1], v[2])
+        parts.append(Rows(t[start:], Cs[start:], self.attitude_cov(), self.phase,
+                          None if nav is None else nav[start:]))
+        return parts, offset + n, None
+
+    def step(self, t, dtheta, dv, gnss):
+        """One sample with scalar arithmetic (the live node's path): ``(Output, reason)``."""
+        eng, c = self.engine, self.clock
+        dt = t - c.t_last
+        if eng.restages:
+            C, epoch = eng.step(dtheta, dv, dt)
+            c.t_last = t
+            if epoch:
+                self._epoch_done(t)
+        else:
+            n_pred = eng.n_predict_only
+            C = eng.step_imu(dtheta, dv, dt)
+            c.t_last = t
+            if eng.n_predict_only != n_pred:     # an epoch without GNSS: the sigma grew
+                self._att_cov = None
+            if gnss.due(t):
+                reason = self._apply_gnss(t, gnss)
+                if reason is not None:
+                    nav = np.full((1, 6), np.nan) if self.navigating else None
+                    return one_row(t, eng.mech.C_b_n, eng.attitude_cov(), FINE, nav), reason
+                C = eng.mech.C_b_n
+        nav = None
+        if self.navigating:
+            m = eng.mech
+            nav = np.array([[m.lat, m.lon, m.h, m.v_n[0], m.v_n[1], m.v_n[2]]])
+        return one_row(t, C, self.attitude_cov(), self.phase, nav), None
+
+    def _apply_gnss(self, t_now, gnss):
+        """Give the engine every queued epoch up to ``t_now``; the reason if it diverged."""
+        while True:
+            fix = gnss.pop_due(t_now, self.t0)
+            if fix is None:
+                return None
+            try:
+                self.engine.update(fix, t_now)
+            except FilterDiverged as exc:
+                return str(exc)
+            gnss.used(fix)
+            self._epoch_done(t_now)

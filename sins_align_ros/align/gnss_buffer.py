@@ -1,0 +1,192 @@
+"""GNSS history and pending queue of the pipeline (after the input checks).
+
+Every accepted fix is remembered (the last one, and the recent ones whose median
+gives the stationary models their position); the GNSS-aided filters also keep a
+history (fixes and velocities of the last :data:`KEEP_S` for the coarse stage's
+velocity) and a queue of epochs waiting for the IMU stream to pass their stamps.
+Rules, each counted by reason in :attr:`GnssBuffer.counts`:
+
+* ``ahead_of_imu``: a fix stamped more than :data:`MAX_LEAD_S` after the last IMU
+  sample (the clocks disagree): dropped;
+* ``queue_full``: more than 100 epochs waiting: the oldest is dropped;
+* ``before_start``: an epoch stamped before the fine filter started: history only;
+* ``late``: an epoch applied more than :data:`MAX_LAG_S` after its stamp: dropped;
+* ``used``: given to the filter (the measurement is moved back to the fix time with
+  the current velocity by the engine).
+"""
+import math
+from collections import deque
+
+import numpy as np
+
+from ..nav import earth
+from ..units import DEG
+from .aided import GnssFix
+from .gnss_input import reported_variances
+
+#: GNSS history kept for the moving-base coarse alignment, s
+KEEP_S = 3600.0
+#: a queued GNSS epoch older than this (against the IMU stamps) is dropped, s
+MAX_LAG_S = 1.0
+#: a GNSS epoch stamped this far ahead of the IMU clock is dropped (clocks disagree), s
+MAX_LEAD_S = 10.0
+#: fixes whose median gives the stationary models their position
+MEDIAN_FIXES = 31
+#: epochs that may wait for the IMU stream
+QUEUE = 100
+
+
+class GnssBuffer:
+    """See the module docstring; ``aided``: the fine filter measures GNSS."""
+
+    def __init__(self, aided):
+        self.aided = bool(aided)
+        #: the last valid GNSS fix (t, lat_deg, lon_deg, h), kept across resets
+        self.last_fix = None
+        #: recent fixes (lat_deg, lon_deg, h): their median is the stationary position
+        self.recent_fixes = deque(maxlen=MEDIAN_FIXES)
+        self.fixes = deque()        # (t, lat, lon, h, pos_var) in rad, rad, m, m^2
+        self.vels = deque()         # (t, v_n (3,), vel_var)
+        self.reset()
+
+    def reset(self, keep_history=False):
+        """Empty the queue and the counts (and the history unless ``keep_history``)."""
+        if not keep_history:
+            self.fixes = deque()
+            self.vels = deque()
+        self.pending = deque(maxlen=QUEUE)
+        self.counts = {'used': 0, 'late': 0, 'before_start': 0, 'ahead_of_imu': 0,
+                       'queue_full': 0}
+        #: stamp of the last epoch given to the filter
+        self.t_used = None
+
+    def inherit(self, other):
+        """Take over the position history of ``other`` (a buffer being replaced)."""
+        self.last_fix = other.last_fix
+        self.recent_fixes.extend(other.recent_fixes)
+
+    # -- input ---------------------------------------------------------------------------
+    def position_fix(self, t, lat_deg, lon_deg, h, pos_var, t_imu, queue):
+        """Record a fix (deg, deg, m); ``queue``: the filter runs, so it waits to be applied.
+
+        ``t_imu`` is the last IMU stamp (None before the first); ``pos_var`` (2,) east/north
+        m^2 as reported, used only if both are finite and positive.
+        """
+        t = float(t)
+        if t_imu is not None and t > t_imu + MAX_LEAD_S:
+            self.counts['ahead_of_imu'] += 1
+            return
+        self.last_fix = (t, float(lat_deg), float(lon_deg), float(h))
+        self.recent_fixes.append(self.last_fix[1:])
+        if not self.aided:
+            return
+        rec = (t, lat_deg * DEG, lon_deg * DEG, float(h), reported_variances(pos_var))
+        self.fixes.append(rec)
+        while self.fixes and self.fixes[0][0] < t - KEEP_S:
+            self.fixes.popleft()
+        if queue:
+            if len(self.pending) == self.pending.maxlen:
+                self.counts['queue_full'] += 1     # the oldest is dropped
+            self.pending.append(rec)
+
+    def velocity_fix(self, t, v_n, vel_var):
+        """Record an ENU velocity (3,) m/s with ``vel_var`` (2,) or None (aided filters only)."""
+        if not self.aided:
+            return
+        t = float(t)
+        self.vels.append((t, np.asarray(v_n, dtype=float).copy(), reported_variances(vel_var)))
+        while self.vels and self.vels[0][0] < t - KEEP_S:
+            self.vels.popleft()
+
+    # -- the fine filter's epochs -----------------------------------------------------------
+    def due(self, t):
+        """Tell whether a queued epoch is stamped at or before ``t``."""
+        return bool(self.pending) and self.pending[0][0] <= t + 1e-9
+
+    def pop_due(self, t_now, t_start):
+        """Return the next usable queued epoch up to ``t_now`` as a :class:`GnssFix`, or None.
+
+        Epochs before ``t_start`` (the filter's start) or more than :data:`MAX_LAG_S`
+        old are dropped and counted.
+        """
+        while self.due(t_now):
+            t_f, lat, lon, h, pv = self.pending.popleft()
+            if t_f <= t_start:
+                self.counts['before_start'] += 1
+                continue
+            if t_now - t_f > MAX_LAG_S:
+                self.counts['late'] += 1
+                continue
+            v, vv = self.velocity_at_stamp(t_f)
+            return GnssFix(t_f, lat, lon, h, v, pv, vv)
+        return None
+
+    def used(self, fix):
+        """Count ``fix`` as given to the filter."""
+        self.t_used = fix.t
+        self.counts['used'] += 1
+
+    def velocity_at_stamp(self, t_f):
+        """GNSS velocity with the fix's stamp (within 20 ms), or (None, None)."""
+        for t_v, v, vv in reversed(self.vels):
+            if abs(t_v - t_f) <= 0.02:
+                return v, vv
+            if t_v < t_f - 0.02:
+                break
+        return None, None
+
+    # -- the coarse stage ---------------------------------------------------------------------
+    def position(self, cfg):
+        """Latitude, longitude (rad), height (m) for the fine filter, and the source name.
+
+        Stationary models: the median of the recent fixes, so that an outlier or a
+        short jump does not set their latitude. Aided filters: the last fix (the
+        filter's innovation gate judges the fixes that follow). Without a fix (or
+        with ``use_gnss_position`` off): the ``initial_*`` parameters.
+        """
+        if cfg['use_gnss_position'] and self.recent_fixes:
+            if self.aided:
+                la, lo, h = self.last_fix[1:]
+            else:
+                la, lo, h = np.median(np.array(self.recent_fixes), axis=0)
+            src = 'gnss'
+        else:
+            la, lo, h = (cfg['initial_latitude_deg'], cfg['initial_longitude_deg'],
+                         cfg['initial_height_m'])
+            src = 'parameters'
+        return np.array([la * DEG, lo * DEG, h]), src
+
+    def velocity_over(self, tt, vel_sigma, pos_sigma):
+        """GNSS velocity at stamps ``tt`` (N, 3), its 1-sigma (m/s) and source; or (None, ...).
+
+        From gnss/vel when at least two messages cover the window (sigma
+        ``vel_sigma``), else from the fixes by a least-squares slope over +-3 epochs
+        (sigma from ``pos_sigma``).
+        """
+        lo, hi = tt[0] - 2.0, tt[-1] + 2.0
+        vels = [(tv, v) for tv, v, _ in self.vels if lo <= tv <= hi]
+        if len(vels) >= 2 and vels[0][0] <= tt[0] + 2.0 and vels[-1][0] >= tt[-1] - 2.0:
+            tv = np.array([a for a, _ in vels])
+            V = np.array([b for _, b in vels])
+            out = np.column_stack([np.interp(tt, tv, V[:, i]) for i in range(3)])
+            return out, vel_sigma, 'gnss_velocity'
+        fixes = [f for f in self.fixes if lo <= f[0] <= hi]
+        if len(fixes) < 7 or fixes[0][0] > tt[0] + 2.0 or fixes[-1][0] < tt[-1] - 2.0:
+            return None, None, 'none'
+        tf = np.array([f[0] for f in fixes])
+        lat0, lon0, h0 = fixes[0][1:4]
+        enu = earth.local_offset_m(lat0, lon0, h0, np.array([f[1] for f in fixes]),
+                                   np.array([f[2] for f in fixes]),
+                                   np.array([f[3] for f in fixes]))
+        w = 3
+        vt, vv = [], []
+        for i in range(w, len(tf) - w):
+            sl = slice(i - w, i + w + 1)
+            tc = tf[sl] - tf[i]
+            vv.append((tc @ (enu[sl] - enu[sl].mean(axis=0))) / (tc @ tc))
+            vt.append(tf[i])
+        vt, vv = np.array(vt), np.array(vv)
+        out = np.column_stack([np.interp(tt, vt, vv[:, i]) for i in range(3)])
+        dt_fix = float(np.median(np.diff(tf)))
+        sig = pos_sigma * math.sqrt(12.0 / (2 * w + 1) / ((2 * w + 1) ** 2 - 1)) / dt_fix
+        return out, sig, 'gnss_positions'

@@ -1,0 +1,120 @@
+"""Output rows of the pipeline: attitude, 1-sigma Euler angles, phase, navigation.
+
+:class:`Output` is what every caller receives (N rows for N processed samples);
+:class:`Rows` holds fine-phase rows before conversion, so that a run of them is
+converted to quaternions and Euler sigmas in one vectorised pass (:func:`assemble`).
+"""
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..nav.frames import dcm_to_euler, dcm_to_quat, euler_cov_from_phi_cov, euler_sigma_one
+
+
+@dataclass
+class Output:
+    """Rows for N processed samples.
+
+    ``t`` (N,) stamps (s); ``q`` (N, 4) quaternion x, y, z, w body FLU -> ENU
+    (NaN while unknown); ``euler`` (N, 3) REP-103 roll, pitch, yaw (rad);
+    ``sigma`` (N, 3) 1-sigma of those angles (rad); ``P_phi`` (N, 3, 3)
+    covariance of the misalignment about the ENU axes (rad^2); ``phase`` (N,)
+    phase names; ``nav`` (N, 6) or None: the navigation solution of the navigation
+    filters (``kf``, ``vbakf``, ``mvbakf``, ``ukf``) at each sample, latitude and
+    longitude (rad), height (m), ENU velocity (m/s); NaN where there is none.
+    """
+
+    t: np.ndarray
+    q: np.ndarray
+    euler: np.ndarray
+    sigma: np.ndarray
+    P_phi: np.ndarray
+    phase: np.ndarray
+    nav: np.ndarray = None
+
+    @staticmethod
+    def concat(parts):
+        """Join several outputs in time order."""
+        parts = [p for p in parts if len(p.t)]
+        if not parts:
+            return Output.empty()
+        if len(parts) == 1:
+            return parts[0]
+        out = Output(*(np.concatenate([getattr(p, f) for p in parts])
+                       for f in ('t', 'q', 'euler', 'sigma', 'P_phi', 'phase')))
+        out.nav = concat_nav(parts)
+        return out
+
+    @staticmethod
+    def empty():
+        """Return an output with no rows."""
+        return Output(np.zeros(0), np.zeros((0, 4)), np.zeros((0, 3)), np.zeros((0, 3)),
+                      np.zeros((0, 3, 3)), np.zeros(0, dtype=object))
+
+    def __len__(self):
+        return len(self.t)
+
+
+class Rows:
+    """Fine-phase rows before conversion.
+
+    Attitudes (N, 3, 3), one covariance, and the navigation solution (N, 6) or None.
+    """
+
+    __slots__ = ('t', 'C', 'P_phi', 'phase', 'nav')
+
+    def __init__(self, t, C, P_phi, phase, nav=None):
+        self.t, self.C, self.P_phi, self.phase, self.nav = t, C, P_phi, phase, nav
+
+    def output(self):
+        return assemble([self])
+
+
+def concat_nav(parts):
+    """Join the parts' navigation rows (N, 6), NaN for parts without; None if none has any."""
+    if all(p.nav is None for p in parts):
+        return None
+    return np.concatenate([p.nav if p.nav is not None else np.full((len(p.t), 6), np.nan)
+                           for p in parts])
+
+
+def one_row(t, C, P, phase, nav):
+    """One-row :class:`Output` from an attitude (3, 3) and its covariance (3, 3)."""
+    eul = dcm_to_euler(C)
+    return Output(np.array([t]), dcm_to_quat(C)[None], eul[None],
+                  euler_sigma_one(eul, P.tolist())[None], P[None],
+                  np.array([phase], dtype=object), nav)
+
+
+def assemble(parts):
+    """Convert runs of fine-phase :class:`Rows` in one vectorised pass; join everything."""
+    done, run = [], []
+
+    def flush():
+        if not run:
+            return
+        t = np.concatenate([r.t for r in run])
+        C = np.concatenate([r.C for r in run])
+        P = np.concatenate([np.broadcast_to(r.P_phi, (len(r.t), 3, 3)) for r in run])
+        ph = np.concatenate([np.full(len(r.t), r.phase, dtype=object) for r in run])
+        eul = dcm_to_euler(C)
+        P_e = euler_cov_from_phi_cov(eul, P)
+        sig = np.sqrt(np.clip(np.diagonal(P_e, axis1=1, axis2=2), 0.0, None))
+        done.append(Output(t, dcm_to_quat(C), eul, sig, P, ph, concat_nav(run)))
+        run.clear()
+
+    for p in parts:
+        if isinstance(p, Rows):
+            run.append(p)
+        else:
+            flush()
+            done.append(p)
+    flush()
+    return Output.concat(done)
+
+
+def unknown(t, phase):
+    n = len(t)
+    nan3 = np.full((n, 3), np.nan)
+    return Output(np.asarray(t, float), np.full((n, 4), np.nan), nan3, nan3.copy(),
+                  np.full((n, 3, 3), np.nan), np.full(n, phase, dtype=object))

@@ -1,0 +1,171 @@
+"""Stationary fine alignment (seed 002): zero-velocity Kalman filter with restaging.
+
+The stationary mechanization with the model's equivalence operations (seed 002
+Table 1) runs at IMU rate; every ``period`` seconds the zero-velocity Kalman filter
+(:class:`~sins_align_ros.models.stationary.StationaryModel`: 12, 10 or 7 states) is
+updated and its misalignment and velocity estimates are fed back into the
+mechanization. When the heading uncertainty has converged the pipeline may
+re-initialise the filter (:meth:`StationaryEngine.restage`): seed 002's closing
+suggestion of staged re-initialisation, which removes the error that the first
+transient leaves in the bias estimates.
+"""
+import numpy as np
+
+from ..filters import kf
+from ..nav import earth
+from ..nav.frames import rotvec_to_dcm
+from ..nav.mechanization import StationaryStrapdown
+
+#: the filter period is reached when the accumulated time is within this of it, s
+_EPS_T = 1e-9
+
+
+class StationaryEngine:
+    """Mechanization + seed 002 filter on a still base; see the module docstring.
+
+    Parameters
+    ----------
+    model : StationaryModel
+    noise : NoiseSpec
+    C_b_n : ndarray (3, 3)
+        Initial attitude, body FLU -> ENU.
+    sigma_phi : ndarray (3,)
+        Initial misalignment sigma, rad.
+    position : ndarray (3,)
+        Latitude, longitude (rad), height (m).
+    zero_velocity_sigma : float
+        Sigma of the zero-velocity measurement, m/s.
+    period : float
+        Filter period, s.
+    """
+
+    navigates = False
+    #: the pipeline may re-initialise this filter when it has converged
+    restages = True
+
+    def __init__(self, model, noise, C_b_n, sigma_phi, position, zero_velocity_sigma, period):
+        lat, lon, h = position
+        m = self.model = model
+        self.noise = noise
+        self.lat = lat
+        self.mech = StationaryStrapdown(C_b_n, lat, lon, h, coriolis=m.mech.coriolis,
+                                        hold_vertical=m.mech.hold_vertical)
+        self.g = earth.gravity(lat, h)
+        self.x = np.zeros(m.n)
+        self.P = m.P0(0.01, sigma_phi, noise)
+        self.H = m.H()
+        self.R = np.eye(len(m.meas)) * zero_velocity_sigma ** 2
+        #: variances (3,) the model cannot see, added to the attitude covariance at output
+        self.floor = m.attitude_floor(lat, noise)
+        self.period = float(period)
+        self.since_update = 0.0
+        self.n_updates = 0
+        self.last_nis = float('nan')
+        self._disc_cache = {}
+
+    # -- stepping --------------------------------------------------------------------------
+    def run_block(self, t, dtheta, dv, i, t_last):
+        """Mechanize samples ``i..`` up to the next filter epoch (which it runs).
+
+        Returns ``(j, C (j - i, 3, 3), epoch)``: the end index, the attitudes after each
+        sample (the last one corrected when the epoch ran) and whether it ran.
+        """
+        j, n = i, len(t)
+        acc = self.since_update
+        while j < n:
+            acc += t[j] - (t_last if j == i else t[j - 1])
+            j += 1
+            if acc >= self.period - _EPS_T:
+                break
+        dts = np.diff(np.concatenate([[t_last], t[i:j]]))
+        C = self.mech.run(dtheta[i:j], dv[i:j], dts)['C_b_n']
+        self.since_update = acc
+        epoch = acc >= self.period - _EPS_T
+        if epoch:
+            self._epoch(acc)
+            C[-1] = self.mech.C_b_n
+        return j, C, epoch
+
+    def step(self, dtheta, dv, dt):
+        """Mechanize one sample (scalar path); returns ``(C_b_n, epoch)``."""
+        C = self.mech.step(dtheta, dv, dt)
+        self.since_update += dt
+        if self.since_update >= self.period - _EPS_T:
+            self._epoch(self.since_update)
+            return self.mech.C_b_n, True
+        return C, False
+
+    def _epoch(self, dt):
+        """Predict over ``dt``, update with zero velocity, feed back (seed 002 eq. 3)."""
+        m = self.model
+        Phi, Qd = self._discretize(dt)
+        self.x, self.P = kf.predict(self.x, self.P, Phi, Qd)
+        z = self.mech.v_n[m.meas]
+        self.x, self.P, y, S = kf.update(self.x, self.P, z, self.H, self.R)
+        self.last_nis = kf.nis(y, S)
+        self.n_updates += 1
+        # feedback: C = exp([phi x]) C~ (seed 002 eq. 3), velocity error removed
+        self.mech.C_b_n = rotvec_to_dcm(self.x[m.i_phi]) @ self.mech.C_b_n
+        dvel = np.zeros(3)
+        dvel[m.meas] = self.x[m.i_v]
+        self.mech.correct_velocity(dvel)
+        self.x[m.i_phi] = 0.0
+        self.x[m.i_v] = 0.0
+        self.since_update = 0.0
+
+    def _discretize(self, dt):
+        m = self.model
+        key = round(dt, 9)
+        if m.name == 'reduced7' and key in self._disc_cache:
+            return self._disc_cache[key]
+        F = m.F(self.mech.C_b_n, self.lat, self.g)
+        G, Qc = m.G_Qc(self.mech.C_b_n, self.noise)
+        res = kf.discretize(F, G, Qc, dt)
+        if m.name == 'reduced7':
+            self._disc_cache[key] = res
+        return res
+
+    def restage(self):
+        """Seed 002 sec. 4: re-initialise the filter from the corrected attitude.
+
+        The bias states, which absorbed the transient of the first stage (the
+        nonlinear effect of a large initial misalignment), restart from their
+        prior, uncorrelated with the misalignment.
+
+        * reduced7: the misalignment keeps its current variance. Its unobservable
+          part is not in P but added at the output (attitude floor), so nothing
+          is counted twice; keeping the variance keeps the averaging already done
+          on the heading (a widened restart let it wander outside the limit band).
+        * stationary10/12: their P holds the bias/misalignment ambiguity itself;
+          a fresh bias prior next to the old misalignment variance would count
+          that information twice (Monte Carlo: 92% inside 3 sigma, NEES 6.9), so
+          the misalignment restarts from three times its current sigma.
+        """
+        m = self.model
+        ip = m.i_phi
+        widen = 1.0 if m.name == 'reduced7' else 3.0
+        P_phi = np.diag(np.diag(self.P)[ip]) * widen ** 2
+        self.x, P = m.reset_biases(self.x, self.P, self.noise)
+        other = np.setdiff1d(np.arange(m.n), ip)
+        P[np.ix_(ip, ip)] = P_phi
+        P[np.ix_(ip, other)] = 0.0
+        P[np.ix_(other, ip)] = 0.0
+        self.P = P
+
+    # -- output ------------------------------------------------------------------------------
+    def attitude_cov(self):
+        """Misalignment covariance about ENU (3, 3) the filter holds (without the floor)."""
+        ip = self.model.i_phi
+        return self.P[np.ix_(ip, ip)]
+
+    def widen(self, var_phi, var_v):
+        """Add ``var_phi`` (rad^2) to each misalignment and ``var_v`` to each velocity variance."""
+        m = self.model
+        P = self.P.copy()
+        P[m.i_phi, m.i_phi] += var_phi
+        P[m.i_v, m.i_v] += var_v
+        self.P = P
+
+    def status(self):
+        """Filter internals for diagnostics."""
+        return {'filter_updates': self.n_updates, 'innovation_nis': self.last_nis}
