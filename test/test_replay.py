@@ -266,3 +266,46 @@ def test_truncated_bag_file_gives_one_line_and_exit_1(tmp_path, capsys):
     assert rc == 1 and 'Traceback' not in err
     assert len([ln for ln in err.splitlines() if 'error:' in ln]) == 1
     assert 'not a readable rosbag2' in err and 'malformed' in err
+
+
+@pytest.fixture(scope='module')
+def usv_bag(tmp_path_factory):
+    """40 s of the seed 004 USV (GNSS position and velocity) as a rosbag2."""
+    return write_scenario_bag(tmp_path_factory.mktemp('usv') / 'bag', scenario('seed004_high'),
+                              seed=2, duration=40.0, start_time=START)
+
+
+@pytest.mark.parametrize('fine_filter', prm.FINE_FILTERS)
+def test_report_figure_is_written_for_every_fine_filter(usv_bag, tmp_path, fine_filter):
+    """--report worked only for the stationary filters (it asked for their model's name)."""
+    out, png = tmp_path / 'o.csv', tmp_path / 'o.png'
+    assert replay([str(usv_bag), '--set', f'fine_filter={fine_filter}', '--set',
+                   'coarse_duration=10', '--out', str(out), '--report', str(png),
+                   '--quiet']) == 0
+    last, _ = final_row(out)
+    assert last['phase'] in ('fine', 'aligned')
+    assert png.stat().st_size > 10_000
+
+
+PRESETS = sorted(p.name for p in (ROOT / 'config').glob('alignment_*.yaml'))
+
+
+@pytest.mark.parametrize('preset', PRESETS)
+def test_every_alignment_preset_loads_in_the_replay_tool(usv_bag, tmp_path, capsys, preset):
+    """A preset may carry node-only parameters (odom_frame_id): said and left out, not refused."""
+    out = tmp_path / 'o.csv'
+    assert replay([str(usv_bag), '--params', str(ROOT / 'config' / preset), '--set',
+                   'coarse_duration=10', '--out', str(out)]) == 0
+    err = capsys.readouterr().err
+    assert 'error' not in err
+    if 'odom_frame_id' in (ROOT / 'config' / preset).read_text():
+        assert 'node-only parameters not used by the replay: odom_frame_id' in err
+
+
+def test_set_reads_values_as_yaml():
+    assert prm.parse_value('coarse_duration', '30') == 30.0
+    assert prm.parse_value('preprocess', 'yes') is True
+    assert prm.parse_value('preprocess', '0') is False
+    assert prm.parse_value('fine_filter', 'asckf') == 'asckf'
+    with pytest.raises(ValueError, match='expects a float'):
+        prm.parse_value('coarse_duration', '[1, 2]')
