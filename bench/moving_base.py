@@ -37,7 +37,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from sins_align_ros.align.moving import FilterDiverged, MovingBaseAlignment  # noqa: E402
-from sins_align_ros.align.pipeline import AlignmentPipeline, feed_arrays  # noqa: E402
+from sins_align_ros.align.pipeline import AlignmentPipeline  # noqa: E402
+from sins_align_ros.align.session import feed_arrays  # noqa: E402
 from sins_align_ros.models import large_azimuth as la  # noqa: E402
 from sins_align_ros.nav.frames import (ARCMIN, DEG, attitude_error, euler_to_dcm,  # noqa: E402
                                        quat_to_dcm)

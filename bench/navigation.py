@@ -37,7 +37,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from sins_align_ros.align.pipeline import AlignmentPipeline, feed_arrays  # noqa: E402
+from sins_align_ros.align.pipeline import AlignmentPipeline  # noqa: E402
+from sins_align_ros.align.session import feed_arrays  # noqa: E402
 from sins_align_ros.nav import earth  # noqa: E402
 from sins_align_ros.nav.frames import DEG, euler_error  # noqa: E402
 from sins_align_ros.sim.presets import SENSOR_GRADES, alignment_params, scenario  # noqa: E402

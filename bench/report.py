@@ -46,7 +46,8 @@ sys.path.insert(0, str(ROOT / 'bench'))
 from sins_align_ros.align import params as prm  # noqa: E402
 from sins_align_ros.align.limits import alignment_limits  # noqa: E402
 from sins_align_ros.align.params import AVAILABLE_FINE_FILTERS, MOVING_FILTERS  # noqa: E402
-from sins_align_ros.align.pipeline import AlignmentPipeline, feed_arrays  # noqa: E402
+from sins_align_ros.align.pipeline import AlignmentPipeline  # noqa: E402
+from sins_align_ros.align.session import feed_arrays  # noqa: E402
 from sins_align_ros.nav.frames import (ARCMIN, DEG, attitude_error, euler_error,  # noqa: E402
                                        euler_to_dcm, quat_to_dcm)
 from sins_align_ros.sim.presets import alignment_params, scenario, translates  # noqa: E402

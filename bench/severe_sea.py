@@ -29,7 +29,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from sins_align_ros.align.moving import FilterDiverged, GnssFix  # noqa: E402
-from sins_align_ros.align.pipeline import AlignmentPipeline, feed_arrays  # noqa: E402
+from sins_align_ros.align.pipeline import AlignmentPipeline  # noqa: E402
+from sins_align_ros.align.session import feed_arrays  # noqa: E402
 from sins_align_ros.align.robust import RobustAlignment, model_noise  # noqa: E402
 from sins_align_ros.models import large_misalignment as lm  # noqa: E402
 from sins_align_ros.models.stationary import NoiseSpec  # noqa: E402

@@ -19,7 +19,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'bench'))
 
 from pyins_sim import pyins_increments, simulate_with_pyins, truth_on_grid  # noqa: E402
 
-from sins_align_ros.align.pipeline import AlignmentPipeline, feed_arrays  # noqa: E402
+from sins_align_ros.align.pipeline import AlignmentPipeline  # noqa: E402
+from sins_align_ros.align.session import feed_arrays  # noqa: E402
 from sins_align_ros.nav.frames import ARCMIN, attitude_error, quat_to_dcm  # noqa: E402
 from sins_align_ros.sim.imu import ideal_increments  # noqa: E402
 from sins_align_ros.sim.presets import alignment_params, scenario  # noqa: E402
