@@ -95,14 +95,14 @@ ALIGNMENT_PARAMS = (
     Param('asckf_adaptive', True, 'asckf: Sage-Husa measurement-noise estimation with the '
           'divergence test (seed 000 eq. 39, 20)'),
     Param('asckf_adapt_q', False, 'asckf: estimate the process noise Q as well (seed 000 '
-          'eq. 39; off by default, see README)'),
+          'eq. 39; off by default, see docs/filters.md)'),
     Param('asckf_forgetting', 0.97, 'asckf: Sage-Husa forgetting factor b', 0.5, 0.9999),
     Param('vb_forgetting', 0.98, 'vbckf/vbch: forgetting factor rho of the variational-Bayes '
           'R estimate (memory about 1 / (1 - rho) GNSS epochs; seed 004 eq. 24)', 0.5, 1.0),
     Param('vb_iterations', 20, 'vbckf/vbch: variational-Bayes iterations per GNSS epoch '
           '(seed 004: N = 20)', 1, 100),
     Param('vbch_c', 100.0, 'vbch: constant C of the adaptive robust factor gamma (seed 004 '
-          'eq. 15; the seed\'s 1.5 lets the heading variance grow every epoch, see README)',
+          'eq. 15; the seed\'s 1.5 lets the heading variance grow every epoch, see docs/filters.md)',
           0.0, 1e6),
     Param('vb_outlier_dof', 5.0, 'vbckf/vbch: degrees of freedom of the Student-t scale that '
           'down-weights outlier epochs (0: off, the seed\'s plain inverse-Gamma R)',
@@ -118,7 +118,7 @@ ALIGNMENT_PARAMS = (
           'P(k|k-1) (seed 001 eq. 9-10; its Fig. 2 uses 6)', 0.0, 1e6),
     Param('mvbakf_moment', 'mean', 'mvbakf: posterior moment of P(k|k-1) and R used in the '
           'update: mean (seed 001 eq. 24, 30 as printed) or inverse (E[P^-1]^-1, the '
-          'variational derivation\'s; see README)', choices=('mean', 'inverse')),
+          'variational derivation\'s; see docs/filters.md)', choices=('mean', 'inverse')),
     Param('nav_q_scale', 1.0, 'kf/vbakf/mvbakf/ukf: factor on the process noise Q the '
           'sensor parameters give (seed 001 runs its filters with 9)', 0.01, 1e4),
     Param('accel_bias_tau_s', 3600.0, 'kf/vbakf/mvbakf/ukf: correlation time of the '
@@ -242,7 +242,7 @@ def load_yaml(path, node_name='alignment_node'):
 
 
 def markdown_table(params):
-    """Markdown rows documenting ``params`` (the README's parameter tables are built from this)."""
+    """Markdown rows documenting ``params`` (the docs' parameter tables are built from this)."""
     rows = ['| name | default | range / values | description |', '|---|---|---|---|']
     for p in params:
         if p.choices:

@@ -1,6 +1,6 @@
 """Sensor-grade and scenario presets.
 
-Sensor grades (datasheet units; README "Sensor grade presets" mirrors this
+Sensor grades (datasheet units; docs/simulator_node.md "Sensor grade presets" mirrors this
 table and a test keeps the two equal):
 
 ============  ========  =========  =========  =========  =========  ==============
