@@ -22,33 +22,29 @@ Usage: python bench/moving_base.py [--runs 20]
 """
 import argparse
 import os
-import pickle
-import platform
-import shutil
 import sys
-import tempfile
 import time
-from multiprocessing import Pool
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))      # this checkout's package, not an installed copy
 
 from sins_align_ros.align.moving import FilterDiverged, MovingBaseAlignment  # noqa: E402
-from sins_align_ros.align.pipeline import AlignmentPipeline  # noqa: E402
-from sins_align_ros.align.session import feed_arrays  # noqa: E402
+from sins_align_ros.eval import cache  # noqa: E402
+from sins_align_ros.eval.markdown import machine_summary, write_markdown  # noqa: E402
+from sins_align_ros.eval.pool import monte_carlo  # noqa: E402
+from sins_align_ros.eval.recordings import read_fog, run_fog  # noqa: E402
+from sins_align_ros.eval.run import replay_rate, run_pipeline  # noqa: E402
+from sins_align_ros.eval.scenarios import simulate  # noqa: E402
+from sins_align_ros.eval.stats import error_summary  # noqa: E402
 from sins_align_ros.models import large_azimuth as la  # noqa: E402
-from sins_align_ros.nav.frames import (ARCMIN, DEG, attitude_error, euler_to_dcm,  # noqa: E402
-                                       quat_to_dcm)
+from sins_align_ros.nav.frames import attitude_error, euler_to_dcm, quat_to_dcm  # noqa: E402
 from sins_align_ros.sim.presets import misalignment_rad, noise_window, scenario  # noqa: E402
-from sins_align_ros.sim.scenario import ScenarioStream  # noqa: E402
+from sins_align_ros.units import ARCMIN, DEG, DPH, G0  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / 'shared' / 'data'
-DPH = DEG / 3600.0
-G = 9.80665
 PAPER_TABLE1 = {('ckf', 1): 7.128, ('ckf', 2): 12.29, ('asckf', 1): 1.833, ('asckf', 2): 2.473}
 #: filter name -> (square_root, fading, adaptive)
 VARIANTS = {'ckf': (False, False, False), 'srckf': (True, False, False),
@@ -62,31 +58,8 @@ def seed000_filter(phi0, paper_p0, qscale=1.0):
     else:
         sig_phi = np.array([2 * abs(phi0[0]), 2 * abs(phi0[1]), max(abs(phi0[2]), DEG)])
     P0 = np.diag(np.r_[[0.1 ** 2] * 2, [2.0 ** 2] * 2, sig_phi ** 2, [(0.003 * DPH) ** 2] * 3])
-    Qc = np.r_[[(5e-6 * G) ** 2] * 2, 0.0, 0.0, [(0.0005 * DEG / 60.0) ** 2] * 3, 0, 0, 0]
+    Qc = np.r_[[(5e-6 * G0) ** 2] * 2, 0.0, 0.0, [(0.0005 * DEG / 60.0) ** 2] * 3, 0, 0, 0]
     return P0, Qc * qscale, np.eye(2) * 0.2 ** 2
-
-
-CACHE = Path(tempfile.gettempdir()) / 'sins_align_bench_cache'
-
-
-def simulate_cached(sc, seed, tag):
-    """Simulate the whole scenario once per ``tag``; later runs (other filters) load it."""
-    CACHE.mkdir(exist_ok=True)
-    f = CACHE / f'{tag}-{seed}.pkl'
-    if f.exists():
-        with open(f, 'rb') as fh:
-            return pickle.load(fh)
-    full = simulate_bag_like(sc, seed)
-    b = SimpleNamespace(
-        imu=SimpleNamespace(**{k: getattr(full.imu, k)
-                               for k in ('t', 'dtheta', 'dv', 'euler', 'v_n', 'pos')}),
-        gnss=SimpleNamespace(**{k: getattr(full.gnss, k) for k in (
-            't', 'lat', 'lon', 'h', 'v_n', 'fix', 'pos_cov', 'vel_cov')}))
-    tmp = f.with_suffix(f'.{os.getpid()}.tmp')
-    with open(tmp, 'wb') as fh:
-        pickle.dump(b, fh)
-    os.replace(tmp, f)
-    return b
 
 
 def run_fine(case, seed, variant, paper_p0=True, qscale=1.0, noise_profile=None,
@@ -95,9 +68,7 @@ def run_fine(case, seed, variant, paper_p0=True, qscale=1.0, noise_profile=None,
     sc = scenario(f'seed000_case{case}', duration=duration)
     if noise_profile is not None:
         sc.extra['gnss_noise_profile'] = noise_profile
-    noise = ('wn' + '-'.join(f'{t:g}x{k:g}' for t, k in noise_profile) if noise_profile
-             else 'nom')
-    b = simulate_cached(sc, seed, f'c{case}-{duration:.0f}-{noise}')
+    b = cache.simulate_cached(sc, seed)
     phi0 = misalignment_rad(sc).copy()
     if heading_err_deg is not None:
         phi0[2] = heading_err_deg * DEG
@@ -122,36 +93,29 @@ def run_fine(case, seed, variant, paper_p0=True, qscale=1.0, noise_profile=None,
             'diverged': False}
 
 
-def _job(args):
-    return args, run_fine(**args)
+def _fine_job(kw):
+    return run_fine(**kw)
 
 
 def _stats(rows):
     """Mean/RMS over the runs that did not diverge; ``diverged`` counts the others."""
     ok = [r for r in rows if not r['diverged']] or rows
-    e = np.array([r['err'] for r in ok])
-    s = np.array([r['sigma'] for r in ok])
-    return {'mean': e.mean(axis=0), 'rms': np.sqrt((e ** 2).mean(axis=0)), 'sigma': s.mean(axis=0),
-            'inside3': float(np.mean(np.abs(e[:, 2]) <= 3 * s[:, 2])),
+    st = error_summary([r['err'] for r in ok], [r['sigma'] for r in ok])
+    return {'mean': st.mean, 'rms': st.rms, 'sigma': st.sigma, 'inside3': float(st.inside[2]),
             'speed': float(np.median([r['speed'] for r in ok])),
             'diverged': sum(r['diverged'] for r in rows)}
 
 
-def _pool_map(jobs, procs):
-    out = []
-    with Pool(procs) as pool:
-        for i, res in enumerate(pool.imap_unordered(_job, jobs), 1):
-            out.append(res)
-            print(f'\r  {i}/{len(jobs)} runs', end='', file=sys.stderr, flush=True)
-    print(file=sys.stderr)
-    return out
+def _fine_runs(jobs, procs):
+    """``[(job, run_fine(**job))]`` over ``procs`` processes."""
+    return list(zip(jobs, monte_carlo(_fine_job, jobs, procs)))
 
 
 def table1(runs, procs):
     """Section 1 as markdown lines."""
     jobs = [dict(case=c, seed=s, variant=v, paper_p0=p) for p in (True, False) for c in (1, 2)
             for v in ('ckf', 'asckf') for s in range(1, runs + 1)]
-    res = _pool_map(jobs, procs)
+    res = _fine_runs(jobs, procs)
     lines = ['## 1. Seed 000 Table 1 layout: final azimuth misalignment after 0.4 h (arcmin)',
              '', f'{runs} seeded runs per cell (noise realisations; biases as the paper states). '
              'mean / RMS of the azimuth error; mean reported 1-sigma; fraction of runs inside '
@@ -178,7 +142,7 @@ def wrong_noise(runs, procs, window=(400.0, 700.0), title='2. Wrong noise statis
     jobs = [dict(case=1, seed=s, variant=v, paper_p0=p, qscale=9.0,
                  noise_profile=noise_window(*window, 10.0, 1440.0))
             for p in (False, True) for v in VARIANTS for s in range(1, runs + 1)]
-    res = _pool_map(jobs, procs)
+    res = _fine_runs(jobs, procs)
     lines = [f'## {title} (case 1)', '',
              f'Filter Q = 9 x truth; GNSS position noise 10 x (2 m) from {window[0]:g} to '
              f'{window[1]:g} s while the filter assumes 0.2 m. {runs} runs each; final azimuth '
@@ -202,7 +166,7 @@ def heading(runs, procs):
     """Section 3 as markdown lines."""
     jobs = [dict(case=1, seed=s, variant=v, paper_p0=False, heading_err_deg=h, duration=600.0)
             for h in (30.0, 90.0, 180.0) for v in ('ckf', 'asckf') for s in range(1, runs + 1)]
-    res = _pool_map(jobs, procs)
+    res = _fine_runs(jobs, procs)
     lines = ['## 3. Large initial heading error on the seed 000 ship', '',
              '### 3a. Fine filter alone, started with the heading wrong by 30/90/180 deg '
              '(P0 heading sigma = the error), 600 s', '',
@@ -219,8 +183,7 @@ def heading(runs, procs):
               'mean / RMS (arcmin) | final roll / pitch RMS (arcmin) |', '|---|---|---|---|---|']
     jobs = [dict(heading_deg=hd, fine_filter=v, seed=s) for hd in (45.0, 75.0, 135.0, 225.0)
             for v in ('ckf', 'asckf') for s in range(1, runs + 1)]
-    with Pool(procs) as pool:
-        res = list(zip(jobs, pool.map(_pipeline_job, jobs)))
+    res = list(zip(jobs, monte_carlo(_pipeline_job, jobs, procs)))
     for hd in (45.0, 75.0, 135.0, 225.0):
         for v in ('ckf', 'asckf'):
             rr = [r for a, r in res if a['heading_deg'] == hd and a['fine_filter'] == v]
@@ -236,25 +199,16 @@ def _pipeline_job(kw):
     return run_pipeline_ship(**kw)
 
 
-def simulate_bag_like(sc, seed):
-    """Simulate a whole scenario: IMU block and GNSS epoch."""
-    n = int(round(sc.duration * sc.imu_rate_hz))
-    return ScenarioStream(sc, seed=seed).next_block(n)
-
-
 def run_pipeline_ship(heading_deg, fine_filter, seed=1, duration=1440.0):
     """Run the seed 000 ship (case 1 sensors) through the whole pipeline."""
     sc = scenario('seed000_case1', duration=duration)
     sc.trajectory.heading_deg = heading_deg
-    b = simulate_cached(sc, seed, f'ship{heading_deg:.0f}-{duration:.0f}')
-    p = AlignmentPipeline(marine_params(fine_filter))
-    p.start_clock(0.0)
-    out = feed_arrays(p, b.imu, b.gnss, use_velocity=False)
-    C = quat_to_dcm(out.q[-1])
-    err = attitude_error(C, euler_to_dcm(b.imu.euler[-1]))
+    b = cache.simulate_cached(sc, seed)
+    run = run_pipeline(marine_params(fine_filter), b, use_velocity=False)
+    out = run.out
     k = np.argmax(out.phase == 'fine')
     e0 = attitude_error(quat_to_dcm(out.q[k]), euler_to_dcm(b.imu.euler[k]))
-    return {'err': err / ARCMIN, 'coarse_heading_deg': e0[2] / DEG}
+    return {'err': run.final.phi / ARCMIN, 'coarse_heading_deg': e0[2] / DEG}
 
 
 def marine_params(fine_filter):
@@ -265,40 +219,25 @@ def marine_params(fine_filter):
 
 
 def fog(fine_filter='asckf'):
-    """Section 4: the car recording; returns (lines, dict of errors)."""
-    from sins_align_ros.io.fog import read_fog_mems
-    rec = read_fog_mems(DATA / 'fog_mems_imu.csv', DATA / 'fog_mems_reference.csv')
-    p = AlignmentPipeline(fog_params(fine_filter))
-    p.start_clock(rec.t[0] - 0.01)
-    out = feed_arrays(p, rec.imu_like(), rec.gnss_like(), use_velocity=True)
-    err = rec.errors(out)
-    return err
-
-
-def fog_params(fine_filter):
-    """Pipeline parameters for the fog_mems car (MEMS grade)."""
-    return {'fine_filter': fine_filter, 'gyro_bias_dph': 200.0, 'gyro_arw_dpsh': 1.0,
-            'accel_bias_ug': 2000.0, 'accel_vrw_ug_rthz': 200.0, 'coarse_duration': 10.0,
-            'gnss_pos_sigma_m': 0.5, 'gnss_vel_sigma_mps': 0.05}
+    """Section 4: the car recording; returns the dict of errors (deg)."""
+    rec = read_fog(DATA)
+    if rec is None:
+        raise FileNotFoundError(f'{DATA}: fog_mems recording not found')
+    return run_fog(rec, fine_filter)[1]
 
 
 def speed(repeats=3):
     """Section 5: x real time of the pipeline on 600 s of the seed 000 ship."""
     sc = scenario('seed000_case1', duration=600.0)
-    b = simulate_bag_like(sc, 1)
+    b = simulate(sc, 1)
     lines = ['## 5. Replay speed (pipeline, 600 s, 100 Hz IMU, 1 Hz GNSS, incl. coarse)', '',
              '| filter | x real time (median of 3) |', '|---|---|']
     for ff, extra in (('ckf', {}), ('asckf', {'asckf_fading': False, 'asckf_adaptive': False}),
                       ('asckf', {})):
-        rates = []
-        for _ in range(repeats):
-            p = AlignmentPipeline({**marine_params(ff), **extra})
-            p.start_clock(0.0)
-            t0 = time.perf_counter()
-            feed_arrays(p, b.imu, b.gnss, use_velocity=False, block=1000)
-            rates.append(600.0 / (time.perf_counter() - t0))
+        rate = replay_rate({**marine_params(ff), **extra}, b, repeats, span=600.0,
+                           use_velocity=False, block=1000)
         name = ff if ff == 'ckf' or extra == {} else 'srckf'
-        lines.append(f'| {name} | {np.median(rates):.0f} |')
+        lines.append(f'| {name} | {rate:.0f} |')
     return lines
 
 
@@ -310,11 +249,11 @@ def main():
     ap.add_argument('--out', default=str(ROOT / 'bench' / 'results' / 'moving_base.md'))
     args = ap.parse_args()
     parts = args.only.split(',')
-    shutil.rmtree(CACHE, ignore_errors=True)      # simulations of this run only
+    cache.clear()                                 # simulations of this run only
     t0 = time.time()
     lines = ['# Moving-base alignment (issue 4)', '',
              f'`python bench/moving_base.py --runs {args.runs} --only {args.only}`; '
-             f'{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}.',
+             f'{machine_summary()}.',
              '']
     if 'table1' in parts:
         lines += table1(args.runs, args.procs) + ['']
@@ -338,9 +277,7 @@ def main():
     if 'speed' in parts:
         lines += speed() + ['']
     lines.append(f'Wall time {time.time() - t0:.0f} s.')
-    text = '\n'.join(lines) + '\n'
-    print(text)
-    Path(args.out).write_text(text)
+    print(write_markdown(args.out, lines))
 
 
 if __name__ == '__main__':

@@ -25,26 +25,23 @@ Usage: python bench/navigation.py [--runs 10] [--procs 2] [--only flight,tuning,
 """
 import argparse
 import os
-import platform
 import sys
 import time
-from multiprocessing import Pool
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT))      # this checkout's package, not an installed copy
 
-from sins_align_ros.align.pipeline import AlignmentPipeline  # noqa: E402
-from sins_align_ros.align.session import feed_arrays  # noqa: E402
-from sins_align_ros.nav import earth  # noqa: E402
-from sins_align_ros.nav.frames import DEG, euler_error  # noqa: E402
+from sins_align_ros.eval.cache import simulate_cached as simulate_profile  # noqa: E402
+from sins_align_ros.eval.errors import navigation_rmse  # noqa: E402
+from sins_align_ros.eval.markdown import machine_summary, write_markdown  # noqa: E402
+from sins_align_ros.eval.pool import monte_carlo  # noqa: E402
+from sins_align_ros.eval.run import replay_rate, run_pipeline  # noqa: E402
+from sins_align_ros.eval.scenarios import named  # noqa: E402
 from sins_align_ros.sim.presets import SENSOR_GRADES, alignment_params, scenario  # noqa: E402
-
-sys.path.insert(0, str(ROOT / 'bench'))
-import moving_base  # noqa: E402
 
 #: seed 001 sec. 3.2: (position m, velocity m/s, roll, pitch, heading deg)
 PAPER = {'vbakf': (10.8, 0.304, 0.043, 0.042, 0.26), 'mvbakf': (9.7, 0.278, 0.041, 0.035, 0.24)}
@@ -58,23 +55,18 @@ T_LATE = 600.0
 
 
 def simulate_cached(name, seed):
-    """Return ``(scenario, arrays)``, simulated once per (name, seed) (moving_base's cache).
+    """Return ``(scenario, arrays)``, simulated once per (scenario, seed) (``eval.cache``).
 
     ``name`` is a scenario preset, optionally with ``@grade``: the preset with the IMU of
     ``SENSOR_GRADES[grade]`` instead of its own (``--imu``).
     """
-    base, _, grade = name.partition('@')
-    sc = scenario(base)
-    if grade:
-        sc.imu = SENSOR_GRADES[grade]
-    return sc, moving_base.simulate_cached(sc, seed, f'{name}-{sc.duration:.0f}')
+    sc = named(name)
+    return sc, simulate_profile(sc, seed)
 
 
 def run(name, seed, fine_filter, extra, record=False):
     """One run through the pipeline; RMSE after ``T_START`` and optionally the R curve."""
     sc, b = simulate_cached(name, seed)
-    p = AlignmentPipeline(alignment_params(sc, fine_filter, **extra))
-    p.start_clock(0.0)
     curve, track = [], []
 
     def cb(pp):
@@ -86,13 +78,14 @@ def run(name, seed, fine_filter, extra, record=False):
         if record:
             curve.append((pp.t_last, *np.sqrt(np.diag(eng.kf.R))))
 
-    t0 = time.perf_counter()
-    out = feed_arrays(p, b.imu, b.gnss, use_velocity=True, block=100, callback=cb)
-    wall = time.perf_counter() - t0
-    res = {'speed': sc.duration / wall, 'restarts': getattr(p, 'n_restarts', 0),
+    fed = run_pipeline(alignment_params(sc, fine_filter, **extra), b, use_velocity=True,
+                       block=100, callback=cb)
+    out = fed.out
+    res = {'speed': sc.duration / fed.wall, 'restarts': getattr(fed.pipeline, 'n_restarts', 0),
            'phase': str(out.phase[-1])}
     for suffix, t_from in (('', T_START), ('_late', T_LATE)):
-        res.update({k + suffix: v for k, v in _errors(out, b, t_from, track).items()})
+        res.update({k + suffix: v
+                    for k, v in navigation_rmse(out, b.imu, t_from, track).items()})
     if out.nav is not None:
         res['rate_hz'] = float(1.0 / np.median(np.diff(out.t[np.isfinite(out.nav[:, 0])])))
     else:
@@ -102,46 +95,13 @@ def run(name, seed, fine_filter, extra, record=False):
     return res
 
 
-def _errors(out, b, t_from, track):
-    """Return the RMSE of attitude, position and velocity from ``t_from`` on, at 1 Hz.
-
-    Attitude in deg per axis, position 3-D and horizontal (m), velocity 3-D (m/s).
-    """
-    k = np.arange(int(t_from * 100), len(out.t), 100)
-    k = k[np.isfinite(out.q[k, 0])]
-    e = euler_error(out.euler[k], b.imu.euler[k])
-    res = {'att': np.sqrt(np.mean(e ** 2, axis=0)) / DEG}
-    if out.nav is not None:
-        nav = out.nav[k]
-        ok = np.isfinite(nav[:, 0])
-        truth = b.imu.pos[k][ok]
-        d = earth.local_offset_m(truth[:, 0], truth[:, 1], truth[:, 2], nav[ok, 0],
-                                 nav[ok, 1], nav[ok, 2])
-        dv = nav[ok, 3:] - b.imu.v_n[k][ok]
-        res['pos'] = float(np.sqrt(np.mean(np.sum(d ** 2, axis=1))))
-        res['pos_h'] = float(np.sqrt(np.mean(np.sum(d[:, :2] ** 2, axis=1))))
-        res['vel'] = float(np.sqrt(np.mean(np.sum(dv ** 2, axis=1))))
-    else:                        # alignment-only filter: its mechanization's position at 1 Hz
-        tr = np.array([r for r in track if r[0] >= t_from])
-        idx = np.clip(np.searchsorted(b.imu.t, tr[:, 0]), 0, len(b.imu.t) - 1)
-        truth = b.imu.pos[idx]
-        d = earth.local_offset_m(truth[:, 0], truth[:, 1], truth[:, 2], tr[:, 1], tr[:, 2],
-                                 tr[:, 3])
-        res['pos'] = float(np.sqrt(np.mean(np.sum(d ** 2, axis=1))))
-        res['pos_h'] = float(np.sqrt(np.mean(np.sum(d[:, :2] ** 2, axis=1))))
-        res['vel'] = float('nan')
-    return res
-
-
 def _job(args):
-    return args, run(*args)
+    return run(*args)
 
 
 def _pool(jobs, procs):
-    if procs <= 1:
-        return [_job(j) for j in jobs]
-    with Pool(procs) as pool:
-        return pool.map(_job, jobs, chunksize=1)
+    """``[(job, run(*job))]`` over ``procs`` processes."""
+    return list(zip(jobs, monte_carlo(_job, jobs, procs)))
 
 
 def _mean(rows, key):
@@ -303,17 +263,12 @@ def speed(repeats=3):
              f'median of {repeats})', '',
              '| filter | x real time, block feed (replay) | x real time, one sample per call '
              '(live node path) |', '|---|---|---|']
+    data = SimpleNamespace(imu=imu, gnss=gn)
     for ff in ('kf', 'vbakf', 'mvbakf', 'ukf'):
-        rates = {}
-        for block in (1000, 1):
-            r = []
-            for _ in range(repeats if block > 1 else 1):
-                p = AlignmentPipeline(alignment_params(sc, ff))
-                p.start_clock(0.0)
-                t0 = time.perf_counter()
-                feed_arrays(p, imu, gn, use_velocity=True, block=block)
-                r.append(600.0 / (time.perf_counter() - t0))
-            rates[block] = float(np.median(r))
+        rates = {block: replay_rate(alignment_params(sc, ff), data,
+                                    repeats if block > 1 else 1, span=600.0,
+                                    use_velocity=True, block=block)
+                 for block in (1000, 1)}
         lines.append(f'| {ff} | {rates[1000]:.0f} | {rates[1]:.0f} |')
     return lines + ['']
 
@@ -333,8 +288,7 @@ def main():
     lines = ['# Navigation filters (issue 5)', '',
              f'`python bench/navigation.py --runs {args.runs} --tuning-runs {args.tuning_runs} '
              f'--only {args.only}{f" --imu {args.imu}" if args.imu else ""}`; '
-             f'{platform.machine()}, {os.cpu_count()} cores, Python '
-             f'{platform.python_version()}.', '']
+             f'{machine_summary()}.', '']
     flight_scen = 'seed001_flight' + (f'@{args.imu}' if args.imu else '')
     if 'flight' in parts:
         fl, curves = flight(args.runs, args.procs, flight_scen)
@@ -351,9 +305,7 @@ def main():
     if 'speed' in parts:
         lines += speed()
     lines.append(f'Wall time {time.time() - t0:.0f} s.')
-    text = '\n'.join(lines) + '\n'
-    print(text)
-    Path(args.out).write_text(text)
+    print(write_markdown(args.out, lines))
 
 
 if __name__ == '__main__':

@@ -20,25 +20,24 @@ import math
 import platform
 import sys
 import time
-from multiprocessing import Pool
 from pathlib import Path
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT))      # this checkout's package, not an installed copy
 
 from sins_align_ros.align.moving import FilterDiverged, GnssFix  # noqa: E402
-from sins_align_ros.align.pipeline import AlignmentPipeline  # noqa: E402
-from sins_align_ros.align.session import feed_arrays  # noqa: E402
 from sins_align_ros.align.robust import RobustAlignment, model_noise  # noqa: E402
+from sins_align_ros.eval.markdown import write_markdown  # noqa: E402
+from sins_align_ros.eval.pool import monte_carlo  # noqa: E402
+from sins_align_ros.eval.run import run_scenario  # noqa: E402
+from sins_align_ros.eval.scenarios import simulate  # noqa: E402
 from sins_align_ros.models import large_misalignment as lm  # noqa: E402
 from sins_align_ros.models.stationary import NoiseSpec  # noqa: E402
-from sins_align_ros.nav.frames import (DEG, attitude_error, euler_to_dcm,  # noqa: E402
-                                       quat_to_dcm)
-from sins_align_ros.sim.imu import DPH, DPSH, UG  # noqa: E402
-from sins_align_ros.sim.presets import alignment_params, misalignment_rad, scenario  # noqa: E402
-from sins_align_ros.sim.scenario import ScenarioStream  # noqa: E402
+from sins_align_ros.nav.frames import attitude_error, euler_to_dcm  # noqa: E402
+from sins_align_ros.sim.presets import misalignment_rad, scenario  # noqa: E402
+from sins_align_ros.units import DEG, DPH, DPSH, UG  # noqa: E402
 
 GRADES = ('high', 'medium', 'low')
 #: seed 004 Table 3 (VBCH), as quoted in issue 6: (east/north, up) deg
@@ -55,11 +54,6 @@ def make(grade, outliers=True):
     if not outliers:
         sc.gnss = sc.gnss.with_(outlier_prob=0.0)
     return sc
-
-
-def simulate(sc, seed):
-    """Simulate the whole run: IMU block and GNSS epochs."""
-    return ScenarioStream(sc, seed=seed).next_block(int(round(sc.duration * sc.imu_rate_hz)))
 
 
 def filter_model(sc, phi0):
@@ -125,13 +119,13 @@ def window_stats(r):
 def _job(args):
     kind, kw = args
     if kind == 'fine':
-        return args, run_fine(**kw)
-    return args, run_pipeline(**kw)
+        return run_fine(**kw)
+    return run_pipeline(**kw)
 
 
 def _pool_map(jobs, procs):
-    with Pool(procs) as pool:
-        return dict((repr(a), r) for a, r in pool.imap_unordered(_job, jobs))
+    """``{repr(job): result}`` over ``procs`` processes."""
+    return dict(zip(map(repr, jobs), monte_carlo(_job, jobs, procs)))
 
 
 #: report name -> (robust, run_fine keywords): the seed's filters as read, and ours
@@ -177,19 +171,13 @@ def table(runs, procs, outliers):
 
 def run_pipeline(grade, seed, fine_filter, gate, extra=()):
     """Run the whole pipeline (coarse, then ``fine_filter``) on the outlier scenario."""
-    sc = make(grade, True)
-    b = simulate(sc, seed)
-    cfg = alignment_params(sc, fine_filter, **dict(extra))
-    if not gate:
-        cfg['gnss_gate_probability'] = 1.0
-    p = AlignmentPipeline(cfg)
-    p.start_clock(0.0)
-    out = feed_arrays(p, b.imu, b.gnss, use_velocity=True)
-    if not np.isfinite(out.q[-1, 3]):
+    gate_off = {} if gate else {'gnss_gate_probability': 1.0}
+    run = run_scenario(make(grade, True), seed, fine_filter, **dict(extra), **gate_off)
+    fe = run.final
+    if not fe.known:
         return {'diverged': True}
-    phi = attitude_error(quat_to_dcm(out.q[-1]), euler_to_dcm(b.imu.euler[-1]))
-    return {'diverged': bool(np.abs(phi).max() > DIVERGED), 'phi': phi,
-            'sigma': out.sigma[-1], 'phase': str(out.phase[-1])}
+    return {'diverged': bool(np.abs(fe.phi).max() > DIVERGED), 'phi': fe.phi,
+            'sigma': fe.sigma, 'phase': str(run.out.phase[-1])}
 
 
 PIPELINE_FILTERS = {'ckf': ('ckf', ()), 'srckf': ('asckf', (('asckf_fading', False),
@@ -263,7 +251,7 @@ def main():
               'Coarse alignment first (no misalignment given), final error at 300 s.', '']
         L += all_filters(args.runs, args.procs, names) + ['']
     L.append(f'Wall time: {(time.monotonic() - t0) / 60:.1f} min.')
-    Path(args.out).write_text('\n'.join(L) + '\n')
+    write_markdown(args.out, L)
     print('\n'.join(L))
 
 

@@ -19,15 +19,17 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # this checkout's package
 
+from sins_align_ros.eval.markdown import write_markdown  # noqa: E402
 from sins_align_ros.nav import earth  # noqa: E402
-from sins_align_ros.nav.frames import ARCSEC, attitude_error, euler_to_dcm  # noqa: E402
+from sins_align_ros.nav.frames import attitude_error, euler_to_dcm  # noqa: E402
 from sins_align_ros.nav.mechanization import Strapdown  # noqa: E402
 from sins_align_ros.sim.allan import adev_markov, adev_white, allan_deviation  # noqa: E402
-from sins_align_ros.sim.imu import DPH, DPSH, UG, ImuErrors, ImuSimulator, ImuSpec  # noqa: E402
+from sins_align_ros.sim.imu import ImuErrors, ImuSimulator, ImuSpec  # noqa: E402
 from sins_align_ros.sim.presets import SEED000_SWAY, scenario  # noqa: E402
 from sins_align_ros.sim.trajectory import Sway, Trajectory  # noqa: E402
+from sins_align_ros.units import ARCSEC, DPH, DPSH, UG  # noqa: E402
 
 
 def trajectories():
@@ -114,10 +116,7 @@ def main():
         unit = 'deg/h' if 'deg' in q else 'ug'
         lines.append(f'| {q} | {tau:g} | {c:.4g} {unit} | {m:.4g} {unit} | {r:.3f} |')
     lines += ['', 'Acceptance: ratio within 0.90-1.10.']
-    text = '\n'.join(lines) + '\n'
-    print(text)
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(text)
+    print(write_markdown(args.out, lines))
 
 
 if __name__ == '__main__':

@@ -22,19 +22,21 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # this checkout's package
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 
 import rclpy  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
-from sins_align_ros.nav.frames import ARCMIN, attitude_error, euler_to_dcm  # noqa: E402
+from sins_align_ros.eval.markdown import machine_summary, write_markdown  # noqa: E402
+from sins_align_ros.nav.frames import attitude_error, euler_to_dcm  # noqa: E402
 from sins_align_ros.ros.alignment_node import AlignmentNode  # noqa: E402
 from sins_align_ros.ros.playback import Player  # noqa: E402
 from sins_align_ros.sim.faults import MessageStream, inject  # noqa: E402
 from sins_align_ros.sim.presets import scenario  # noqa: E402
 from sins_align_ros.sim.scenario import ScenarioStream  # noqa: E402
+from sins_align_ros.units import ARCMIN  # noqa: E402
 
 #: the rotating faults: (name, window length s); clock jumps and gaps restart alignment
 FAULT_CYCLE = [('imu_nan', 0.2), ('gnss_outliers', 5.0), ('imu_repeated', 1.0),
@@ -135,8 +137,7 @@ def main():
         '# Soak run (issue 7)', '',
         f'Command: `python bench/soak.py --minutes {args.minutes} --rate {args.rate:g} '
         f'--fault-every {args.fault_every}`  ',
-        f'Machine: {platform.machine()}, {os.cpu_count()} cores, Python '
-        f'{platform.python_version()}, {platform.platform()}  ',
+        f'Machine: {machine_summary()}, {platform.platform()}  ',
         f'Node: alignment_node, fine_filter asckf, {node.received["imu/data_raw"]} IMU and '
         f'{node.received["gnss/fix"]} + {node.received["gnss/vel"]} GNSS messages through a '
         f'real publisher/subscription in {wall:.0f} s wall ({args.minutes * 60 / wall:.1f}x '
@@ -158,7 +159,7 @@ def main():
         f'{k} {v}' for k, v in sorted(counts.items())), '',
         '| minute | RSS MiB | wall s |', '|---|---|---|']
     lines += [f'| {m} | {r:.1f} | {w:.0f} |' for m, r, w in rss if m % 5 == 0 or m == 1]
-    Path(args.out).write_text('\n'.join(lines) + '\n')
+    write_markdown(args.out, lines)
     print('\n'.join(lines[:12]))
     ex.shutdown()
     ctx.try_shutdown()

@@ -17,7 +17,6 @@ Usage: python bench/stationary.py [--runs 50] [--node-seconds 30] [--out bench/r
 """
 import argparse
 import os
-import platform
 import subprocess
 import sys
 import time
@@ -25,16 +24,22 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))      # this checkout's package, not an installed copy
 
 from sins_align_ros.align.limits import scenario_limits  # noqa: E402
 from sins_align_ros.align.pipeline import AlignmentPipeline  # noqa: E402
-from sins_align_ros.nav.frames import (ARCMIN, attitude_error, dcm_to_euler,  # noqa: E402
-                                       euler_error, euler_to_dcm, quat_to_dcm, rotvec_to_dcm)
+from sins_align_ros.eval.markdown import machine_summary, write_markdown  # noqa: E402
+from sins_align_ros.eval.pool import monte_carlo as run_seeds  # noqa: E402
+from sins_align_ros.eval.run import replay_rate, run_pipeline, without_gnss  # noqa: E402
+from sins_align_ros.eval.scenarios import simulate  # noqa: E402
+from sins_align_ros.eval.stats import error_summary  # noqa: E402
+from sins_align_ros.nav.frames import (attitude_error, dcm_to_euler, euler_error,  # noqa: E402
+                                       euler_to_dcm, quat_to_dcm, rotvec_to_dcm)
 from sins_align_ros.sim.presets import SENSOR_GRADES, misalignment_rad, scenario  # noqa: E402
 from sins_align_ros.sim.scenario import ScenarioStream  # noqa: E402
+from sins_align_ros.units import ARCMIN  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
 PAPER = {  # seed 002 Table 2 (deg): heading, pitch, roll per model and misalignment
     ('reduced7', 1): (0.045827, 0.014187, -0.017084),
     ('stationary10', 1): (0.047166, 0.014579, -0.015390),
@@ -76,34 +81,27 @@ def seed002_case(model, mis, seed=1, stages=3):
 
 def replay_speed(model, repeats=3):
     """Median x-real-time of the whole pipeline (coarse + fine) on 600 s of 100 Hz data."""
-    b = ScenarioStream(scenario('seed002_1deg'), seed=1).next_block(60000)
-    rates = []
-    for _ in range(repeats):
-        p = AlignmentPipeline({**SEED002, 'fine_filter': model})
-        p.start_clock(0.0)
-        t0 = time.perf_counter()
-        p.process(b.imu.t, b.imu.dtheta, b.imu.dv)
-        rates.append(600.0 / (time.perf_counter() - t0))
-    return float(np.median(rates))
+    b = simulate(scenario('seed002_1deg'), 1)
+    return replay_rate({**SEED002, 'fine_filter': model}, without_gnss(b), repeats,
+                       span=600.0, block=None)
+
+
+def still_run(job):
+    """One Monte Carlo run of section 2: ``(model, seed, seconds)`` -> final error."""
+    model, seed, seconds = job
+    sc = scenario('static_navigation', duration=seconds,
+                  imu=SENSOR_GRADES['navigation'].with_(random_bias=True))
+    return run_pipeline({'initial_latitude_deg': 34.0, 'initial_longitude_deg': 108.0,
+                         'initial_height_m': 50.0, 'use_gnss_position': False,
+                         'fine_filter': model}, without_gnss(simulate(sc, seed)),
+                        block=None).final
 
 
 def monte_carlo(runs, model='reduced7', seconds=600.0):
     """Fraction of final errors inside 3 sigma per angle, and mean NEES (3 dof)."""
-    inside, nees = [], []
-    for k in range(runs):
-        sc = scenario('static_navigation', imu=SENSOR_GRADES['navigation'].with_(
-            random_bias=True))
-        b = ScenarioStream(sc, seed=1000 + k).next_block(int(seconds * 100))
-        p = AlignmentPipeline({'initial_latitude_deg': 34.0, 'initial_longitude_deg': 108.0,
-                               'initial_height_m': 50.0, 'use_gnss_position': False,
-                               'fine_filter': model})
-        p.start_clock(0.0)
-        out = p.process(b.imu.t, b.imu.dtheta, b.imu.dv)
-        e = euler_error(out.euler[-1], b.imu.euler[-1])
-        inside.append(np.abs(e) <= 3.0 * out.sigma[-1])
-        phi = attitude_error(quat_to_dcm(out.q[-1]), euler_to_dcm(b.imu.euler[-1]))
-        nees.append(float(phi @ np.linalg.solve(out.P_phi[-1], phi)))
-    return np.mean(inside, axis=0), float(np.mean(nees))
+    finals = run_seeds(still_run, [(model, 1000 + k, seconds) for k in range(runs)], procs=1)
+    st = error_summary([f.euler for f in finals], [f.sigma for f in finals])
+    return st.inside, float(np.mean([f.nees for f in finals]))
 
 
 def psins_cli_speed():
@@ -217,7 +215,7 @@ def main():
     t_start = time.perf_counter()
     L = ['# Stationary alignment (seed 002 filters)', '',
          f'Command: `python bench/stationary.py --runs {args.runs}`; machine: '
-         f'{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}', '',
+         f'{machine_summary()}', '',
          '## 1. Seed 002 scenario: 34 N, 10 min, navigation grade', '',
          'Final errors in arcmin (heading, pitch, roll as in the paper\'s Table 2, whose values '
          'are degrees x 60 here). Convergence: time after which the heading error stays inside '
@@ -282,10 +280,8 @@ def main():
         L.append('Latency: stamp of the input message (taken when published) to reception of '
                  'the matching imu/data in the publishing process.')
     L += ['', f'Wall time of this benchmark: {time.perf_counter() - t_start:.0f} s.']
-    text = '\n'.join(L) + '\n'
     print('\n'.join(L[-10:]))
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(text)
+    write_markdown(args.out, L)
 
 
 if __name__ == '__main__':

@@ -7,25 +7,19 @@ gravity models on a still base (a constant vertical 0.07 micro-g at 34 N) and to
 pyins's piecewise-linear acceleration under sway (1e-10 m/s per sample); pyins's
 last spline interval (its boundary condition) aside.
 """
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
+from sins_align_ros.eval.pyins_sim import pyins_increments, simulate_with_pyins, truth_on_grid
+from sins_align_ros.eval.run import run_pipeline
+from sins_align_ros.eval.scenarios import simulate
+from sins_align_ros.nav.frames import attitude_error, quat_to_dcm
+from sins_align_ros.sim.imu import ideal_increments
+from sins_align_ros.sim.presets import alignment_params, scenario
+from sins_align_ros.sim.trajectory import PositionIntegrator
+from sins_align_ros.units import ARCMIN
+
 pytest.importorskip('pyins', reason='python-ins (requirements-test.txt) is not installed')
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'bench'))
-
-from pyins_sim import pyins_increments, simulate_with_pyins, truth_on_grid  # noqa: E402
-
-from sins_align_ros.align.pipeline import AlignmentPipeline  # noqa: E402
-from sins_align_ros.align.session import feed_arrays  # noqa: E402
-from sins_align_ros.nav.frames import ARCMIN, attitude_error, quat_to_dcm  # noqa: E402
-from sins_align_ros.sim.imu import ideal_increments  # noqa: E402
-from sins_align_ros.sim.presets import alignment_params, scenario  # noqa: E402
-from sins_align_ros.sim.scenario import ScenarioStream  # noqa: E402
-from sins_align_ros.sim.trajectory import PositionIntegrator  # noqa: E402
 
 RATE = 100.0
 
@@ -69,7 +63,7 @@ def test_swaying_base_increments_agree_to_round_off_inside_the_spline(name):
 def test_filters_see_the_same_run_on_either_simulator():
     """Same seed, same error draws: only the ideal increments differ, so do the results."""
     sc = scenario('static_navigation', duration=200.0)
-    ref = ScenarioStream(sc, seed=7).next_block(20000)
+    ref = simulate(sc, seed=7)
     alt = simulate_with_pyins(sc, seed=7)
     assert np.array_equal(alt.gnss.t, ref.gnss.t)
     assert np.max(np.abs(alt.imu.dtheta - ref.imu.dtheta)) < 1e-14
@@ -77,8 +71,6 @@ def test_filters_see_the_same_run_on_either_simulator():
     assert np.allclose(euler_true[1:], ref.imu.euler, atol=1e-12)
     finals = []
     for data in (ref, alt):
-        p = AlignmentPipeline(alignment_params(sc, 'reduced7', coarse_duration=30.0))
-        p.start_clock(0.0)
-        out = feed_arrays(p, data.imu, data.gnss)
+        out = run_pipeline(alignment_params(sc, 'reduced7', coarse_duration=30.0), data).out
         finals.append(quat_to_dcm(out.q[-1]))
     assert np.max(np.abs(attitude_error(finals[0], finals[1]))) < 1e-3 * ARCMIN

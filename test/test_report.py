@@ -1,23 +1,21 @@
 """The evidence report (issue 8): quick mode end to end, and docs/results.md kept in step.
 
-``bench/report.py --quick`` runs every fine filter on short scenarios (2 seeded runs,
-both cores), pyins-generated data and the real recordings, and writes REPORT.md with
-its figures. The numbers it produces are checked against truth and the analytic
-limits here, so the harness cannot rot into a table of noise.
+``bench/report.py --quick`` (``sins_align_ros.eval.report.build_report``) runs every
+fine filter on short scenarios (2 seeded runs, both cores), pyins-generated data and
+the real recordings, and writes REPORT.md with its figures. The numbers it produces
+are checked against truth and the analytic limits here, so the harness cannot rot
+into a table of noise.
 """
-import sys
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+from sins_align_ros.eval.evidence import MODES
+from sins_align_ros.eval.report import build_report, report_block
+from sins_align_ros.units import ARCMIN
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / 'bench'))
-
-import report  # noqa: E402
-
-from sins_align_ros.nav.frames import ARCMIN  # noqa: E402
 
 
 # the quick report is built once per module; under pytest-xdist (--dist loadfile) this file
@@ -27,10 +25,10 @@ pytestmark = pytest.mark.first
 
 @pytest.fixture(scope='module')
 def quick(tmp_path_factory):
-    if report.MODES['quick'].sources[-1][0] == 'pyins':
+    if MODES['quick'].sources[-1][0] == 'pyins':
         pytest.importorskip('pyins', reason='python-ins (requirements-test.txt) is missing')
     out = tmp_path_factory.mktemp('report')
-    cells = report.build_report(SimpleNamespace(quick=True, runs=None, procs=2, out=str(out)))
+    cells = build_report(out, quick=True, procs=2)
     return cells, out, (out / 'REPORT.md').read_text()
 
 
@@ -79,15 +77,14 @@ def test_report_has_every_cell_figure_and_recording(quick):
     assert '| fog_mems (car, MEMS, 100 s) | asckf |' in text
     assert '| psins_lasergyro (still, RLG, 300 s) | reduced7 |' in text
     assert '## Against the analytic limits' in text
-    summary = report.report_block(text)
-    assert summary.count('\n| ') == 1 + len(
-        [s for s in report.MODES['quick'].sources if s[0] == 'sim'])
+    summary = report_block(text)
+    assert summary.count('\n| ') == 1 + len([s for s in MODES['quick'].sources if s[0] == 'sim'])
 
 
 def test_results_page_summary_is_the_committed_reports():
     """docs/results.md's summary table is bench/results/REPORT.md's, not typed."""
     committed = ROOT / 'bench' / 'results' / 'REPORT.md'
     results = (ROOT / 'docs' / 'results.md').read_text()
-    assert report.report_block(results) == report.report_block(committed.read_text())
+    assert report_block(results) == report_block(committed.read_text())
     assert 'python bench/report.py' in committed.read_text().split('\n', 3)[2]
     assert '(../bench/results/report/sim_seed000_case1.png)' in results

@@ -7,16 +7,17 @@ gravitation model) and integrates them analytically. Both produce plain integral
 ``int w_ib_b dt`` and ``int f_b dt`` over each interval, so after the frame
 conversion they must agree to the spline and gravity-model differences.
 
-Test and benchmark only: pyins is not a dependency of the package.
+Test and benchmark only: pyins is not a dependency of the package; it is imported
+when :func:`pyins_increments` is called, never when this module is imported.
 """
 from types import SimpleNamespace
 
 import numpy as np
 
-from sins_align_ros.nav.frames import euler_to_dcm
-from sins_align_ros.sim.gnss import GnssErrors
-from sins_align_ros.sim.imu import ImuErrors
-from sins_align_ros.sim.trajectory import PositionIntegrator
+from ..nav.frames import euler_to_dcm
+from ..sim.gnss import GnssErrors
+from ..sim.imu import ImuErrors
+from ..sim.trajectory import PositionIntegrator
 
 #: ENU -> NED (also NED -> ENU: symmetric, its own inverse)
 C_ENU_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
