@@ -7,6 +7,13 @@ stamp. Either way, every filter epoch is followed by the convergence check
 (:class:`~.convergence.ConvergenceMonitor`): a converged stage restages the
 stationary filter (up to ``max_stages``) or turns ``fine`` into ``aligned``.
 
+``aligned`` means good enough for the user, not only converged: the last stage must
+have converged (once) and the roll/pitch and heading 1-sigma must be within
+``aligned_max_tilt_sigma_deg`` / ``aligned_max_heading_sigma_deg``; when either grows
+past its bound the phase goes back to ``fine`` with the reason. A heading the sensors
+cannot observe (``heading_known`` False: a gyro that cannot see Earth rate at rest) is
+published with the variance of an unknown angle, :data:`HEADING_UNKNOWN_VAR`.
+
 A filter failure (:class:`~.gnss_gate.FilterDiverged`) ends the stage: the methods
 return its reason and the pipeline restarts from coarse alignment.
 """
@@ -19,6 +26,8 @@ from .gnss_gate import FilterDiverged
 from .output import Rows, one_row
 
 FINE, ALIGNED = 'fine', 'aligned'
+#: variance of an angle known to be anywhere in (-pi, pi] (uniform): pi^2 / 3, rad^2
+HEADING_UNKNOWN_VAR = math.pi ** 2 / 3.0
 
 
 class Clock:
@@ -36,8 +45,15 @@ class FineStage:
     ``clock`` the pipeline's :class:`Clock` (its ``t_last`` is advanced here).
     """
 
-    def __init__(self, engine, floor, clock, cfg):
+    def __init__(self, engine, floor, clock, cfg, heading_known=True):
         self.engine = engine
+        self.heading_known = bool(heading_known)
+        self.max_tilt = math.radians(cfg['aligned_max_tilt_sigma_deg'])
+        self.max_heading = math.radians(cfg['aligned_max_heading_sigma_deg'])
+        #: why the phase is not ``aligned`` (empty when it is)
+        self.not_aligned = 'converging'
+        #: the last stage has converged (latched): from then on the bounds decide
+        self.converged = False
         self.floor = np.asarray(floor, dtype=float)
         self.clock = clock
         self.phase = FINE
@@ -57,8 +73,32 @@ class FineStage:
     def attitude_cov(self):
         """Misalignment covariance about ENU (3, 3) with the floor; cached between epochs."""
         if self._att_cov is None:
-            self._att_cov = self.engine.attitude_cov() + np.diag(self.floor)
+            P = self.engine.attitude_cov() + np.diag(self.floor)
+            if not self.heading_known:
+                P = P.copy()
+                P[2, :2] = P[:2, 2] = 0.0
+                P[2, 2] = HEADING_UNKNOWN_VAR
+            self._att_cov = P
         return self._att_cov
+
+    def readiness(self):
+        """Return ``(tilt_ready, heading_ready)``: the 1-sigma within the ``aligned`` bounds."""
+        P = self.attitude_cov()
+        tilt = math.sqrt(max(P[0, 0], P[1, 1], 0.0)) <= self.max_tilt
+        heading = self.heading_known and math.sqrt(max(P[2, 2], 0.0)) <= self.max_heading
+        return tilt, heading
+
+    def _ready_reason(self):
+        """Return why the attitude is not good enough for ``aligned`` ('' when it is)."""
+        tilt, heading = self.readiness()
+        if not self.heading_known:
+            return 'heading unobservable'
+        why = []
+        if not tilt:
+            why.append(f'tilt 1-sigma above {math.degrees(self.max_tilt):g} deg')
+        if not heading:
+            why.append(f'heading 1-sigma above {math.degrees(self.max_heading):g} deg')
+        return ', '.join(why)
 
     def widen(self, var_phi, var_v):
         """Widen the engine's covariance by an error the input may have left (a bridge)."""
@@ -70,15 +110,21 @@ class FineStage:
         """After a filter epoch at ``t``: the convergence check."""
         self._att_cov = None
         sig_u = math.sqrt(max(self.attitude_cov()[2, 2], 0.0))
-        if not self.monitor.converged(t, sig_u):
-            return
-        if self.engine.restages and self.stage < self.max_stages:
-            self.engine.restage()
-            self._att_cov = None
-            self.stage += 1
-            self.monitor.start(t)
-        elif self.phase == FINE:
+        if not self.converged:
+            if not self.monitor.converged(t, sig_u):
+                return
+            if self.engine.restages and self.stage < self.max_stages:
+                self.engine.restage()
+                self._att_cov = None
+                self.stage += 1
+                self.monitor.start(t)
+                return
+            self.converged = True
+        self.not_aligned = self._ready_reason()
+        if self.phase == FINE and not self.not_aligned:
             self.phase = ALIGNED
+        elif self.phase == ALIGNED and self.not_aligned:
+            self.phase = FINE
 
     # -- stepping --------------------------------------------------------------------------
     def run(self, t, dtheta, dv, i, gnss):

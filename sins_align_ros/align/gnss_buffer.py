@@ -1,9 +1,10 @@
 """GNSS history and pending queue of the pipeline (after the input checks).
 
 Every accepted fix is remembered (the last one, and the recent ones whose median
-gives the stationary models their position); the GNSS-aided filters also keep a
-history (fixes and velocities of the last :data:`KEEP_S` for the coarse stage's
-velocity) and a queue of epochs waiting for the IMU stream to pass their stamps.
+gives the stationary models their position), with a history of fixes and velocities
+of the last :data:`KEEP_S` (the coarse stage's velocity, and whether the base moves);
+while a GNSS-aided filter runs, epochs also wait in a queue for the IMU stream to pass
+their stamps.
 Rules, each counted by reason in :attr:`GnssBuffer.counts`:
 
 * ``ahead_of_imu``: a fix stamped more than :data:`MAX_LEAD_S` after the last IMU
@@ -37,10 +38,9 @@ QUEUE = 100
 
 
 class GnssBuffer:
-    """See the module docstring; ``aided``: the fine filter measures GNSS."""
+    """See the module docstring."""
 
-    def __init__(self, aided):
-        self.aided = bool(aided)
+    def __init__(self):
         #: the last valid GNSS fix (t, lat_deg, lon_deg, h), kept across resets
         self.last_fix = None
         #: recent fixes (lat_deg, lon_deg, h): their median is the stationary position
@@ -78,8 +78,6 @@ class GnssBuffer:
             return
         self.last_fix = (t, float(lat_deg), float(lon_deg), float(h))
         self.recent_fixes.append(self.last_fix[1:])
-        if not self.aided:
-            return
         rec = (t, lat_deg * DEG, lon_deg * DEG, float(h), reported_variances(pos_var))
         self.fixes.append(rec)
         while self.fixes and self.fixes[0][0] < t - KEEP_S:
@@ -90,9 +88,7 @@ class GnssBuffer:
             self.pending.append(rec)
 
     def velocity_fix(self, t, v_n, vel_var):
-        """Record an ENU velocity (3,) m/s with ``vel_var`` (2,) or None (aided filters only)."""
-        if not self.aided:
-            return
+        """Record an ENU velocity (3,) m/s with ``vel_var`` (2,) or None."""
         t = float(t)
         self.vels.append((t, np.asarray(v_n, dtype=float).copy(), reported_variances(vel_var)))
         while self.vels and self.vels[0][0] < t - KEEP_S:
@@ -136,16 +132,16 @@ class GnssBuffer:
         return None, None
 
     # -- the coarse stage ---------------------------------------------------------------------
-    def position(self, cfg):
+    def position(self, cfg, aided):
         """Latitude, longitude (rad), height (m) for the fine filter, and the source name.
 
         Stationary models: the median of the recent fixes, so that an outlier or a
         short jump does not set their latitude. Aided filters: the last fix (the
-        filter's innovation gate judges the fixes that follow). Without a fix (or
+        filter's innovation gate judges the fixes that follow; ``aided``). Without a fix (or
         with ``use_gnss_position`` off): the ``initial_*`` parameters.
         """
         if cfg['use_gnss_position'] and self.recent_fixes:
-            if self.aided:
+            if aided:
                 la, lo, h = self.last_fix[1:]
             else:
                 la, lo, h = np.median(np.array(self.recent_fixes), axis=0)
@@ -190,3 +186,10 @@ class GnssBuffer:
         dt_fix = float(np.median(np.diff(tf)))
         sig = pos_sigma * math.sqrt(12.0 / (2 * w + 1) / ((2 * w + 1) ** 2 - 1)) / dt_fix
         return out, sig, 'gnss_positions'
+
+    def speed_over(self, tt, vel_sigma, pos_sigma):
+        """Largest horizontal GNSS speed (m/s) over stamps ``tt`` and its noise; or None, None."""
+        V, sig, _ = self.velocity_over(tt, vel_sigma, pos_sigma)
+        if V is None:
+            return None, None
+        return float(np.max(np.hypot(V[:, 0], V[:, 1]))), sig

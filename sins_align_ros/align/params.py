@@ -11,6 +11,10 @@ FINE_FILTERS = ('reduced7', 'stationary10', 'stationary12', 'ckf', 'asckf', 'ukf
                 'vbakf', 'mvbakf', 'vbckf', 'vbch', 'kf')
 #: fine filters implemented in this version (all of DESIGN.md's, and ``kf``)
 AVAILABLE_FINE_FILTERS = FINE_FILTERS
+#: the values of ``fine_filter``: a filter, or ``auto`` (chosen from what the data show)
+FILTER_CHOICES = ('auto',) + FINE_FILTERS
+#: the stationary (zero-velocity) filters of seed 002
+STILL_FILTERS = ('reduced7', 'stationary10', 'stationary12')
 #: the moving-base filters on seed 004's 12-state model (GNSS velocity measurement)
 ROBUST_FILTERS = ('vbckf', 'vbch')
 #: the integrated-navigation filters (seed 001's 15 states, seed 003's 18-state UKF): they
@@ -53,7 +57,16 @@ class Param:
 
 
 ALIGNMENT_PARAMS = (
-    Param('fine_filter', 'reduced7', 'fine-alignment filter', choices=FINE_FILTERS),
+    Param('fine_filter', 'auto', 'fine-alignment filter; auto: auto_still_filter while GNSS '
+          'shows the base at rest (or there is no GNSS), auto_moving_filter when it moves',
+          choices=FILTER_CHOICES),
+    Param('auto_still_filter', 'reduced7', 'auto: the filter for a base at rest',
+          choices=STILL_FILTERS),
+    Param('auto_moving_filter', 'kf', 'auto: the GNSS-aided filter for a moving base',
+          choices=MOVING_FILTERS),
+    Param('motion_speed_mps', 0.5, 'GNSS horizontal speed above which the base moves: auto '
+          'picks the moving filter, a stationary filter refuses to start, the sensor '
+          'self-check skips its bias bounds, m/s', 0.05, 50.0),
     Param('coarse_method', 'auto', 'coarse alignment: analytic (still base), inertial_frame '
           '(sway, disturbance) or auto (picks by detecting motion)', choices=COARSE_METHODS),
     Param('coarse_duration', 60.0, 'coarse alignment time, s', 1.0, 3600.0),
@@ -82,6 +95,12 @@ ALIGNMENT_PARAMS = (
           '(seed 002 sec. 4; 1 = none)', 1, 10),
     Param('stage_min_duration', 30.0, 'minimum time of one fine-alignment stage, s',
           5.0, 3600.0),
+    Param('aligned_max_tilt_sigma_deg', 1.0, 'aligned only while the roll and pitch 1-sigma '
+          'are at most this, deg (tilt_ready in the diagnostics)', 0.001, 90.0),
+    Param('aligned_max_heading_sigma_deg', 2.0, 'aligned only while the heading 1-sigma is at '
+          'most this, deg (heading_ready in the diagnostics)', 0.001, 180.0),
+    Param('sensor_self_check', True, 'check the configured sensor model against the coarse '
+          'window and widen it where the data contradict it (docs/design.md)'),
     Param('gnss_pos_sigma_m', 1.0, 'GNSS horizontal position noise, 1 sigma, m (moving-base '
           'filters; used when a fix reports no covariance or reported covariance is off)',
           0.001, 1000.0),
@@ -102,7 +121,8 @@ ALIGNMENT_PARAMS = (
     Param('vb_iterations', 20, 'vbckf/vbch: variational-Bayes iterations per GNSS epoch '
           '(seed 004: N = 20)', 1, 100),
     Param('vbch_c', 100.0, 'vbch: constant C of the adaptive robust factor gamma (seed 004 '
-          'eq. 15; the seed\'s 1.5 lets the heading variance grow every epoch, see docs/filters.md)',
+          'eq. 15; the seed\'s 1.5 lets the heading variance grow every epoch, see '
+          'docs/filters.md)',
           0.0, 1e6),
     Param('vb_outlier_dof', 5.0, 'vbckf/vbch: degrees of freedom of the Student-t scale that '
           'down-weights outlier epochs (0: off, the seed\'s plain inverse-Gamma R)',

@@ -20,7 +20,7 @@ A filter failure restarts the alignment from coarse, keeping the GNSS history.
 """
 import numpy as np
 
-from . import coarse_stage
+from . import coarse_stage, self_check
 from . import params as prm
 from .factory import is_aided, make_engine, noise_spec
 from .fine_stage import ALIGNED, FINE, Clock, FineStage
@@ -46,12 +46,12 @@ class AlignmentPipeline:
     def __init__(self, values=None):
         cfg = prm.defaults()
         cfg.update(prm.validate(values or {}))
-        self.cfg = cfg
-        #: the configured sensor model in SI units (NoiseSpec)
+        #: the parameters as configured; ``cfg`` holds them as the self-check left them
+        self.configured = cfg
+        self.cfg = dict(cfg)
+        #: the sensor model in SI units (NoiseSpec) the filters use
         self.noise = noise_spec(cfg)
-        #: the fine filter is GNSS-aided (it runs on a moving base)
-        self.aided = is_aided(cfg['fine_filter'])
-        self.gnss = GnssBuffer(self.aided)
+        self.gnss = GnssBuffer()
         self.n_restarts = 0
         self.reset()
 
@@ -64,6 +64,12 @@ class AlignmentPipeline:
         self.clock = Clock()
         self.window = coarse_stage.CoarseWindow(self.cfg['coarse_duration'])
         self.coarse_info = {}
+        self.check = None
+        self.cfg = dict(self.configured)
+        self.noise = noise_spec(self.cfg)
+        #: the fine filter is GNSS-aided (it runs on a moving base); with ``auto``, decided
+        #: when coarse alignment ends
+        self.aided = is_aided(self.cfg['fine_filter'])
         self.fine = None
         self.position_source = None
         self.position = None
@@ -143,7 +149,7 @@ class AlignmentPipeline:
         measurement, applied when the IMU stream passes its stamp.
         """
         self.gnss.position_fix(t, lat_deg, lon_deg, h, pos_var, self.clock.t_last,
-                               queue=self.fine is not None)
+                               queue=self.fine is not None and self.aided)
 
     def velocity_fix(self, t, v_n, vel_var=None):
         """Record a GNSS ENU velocity (m/s, (3,)); ``vel_var`` (2,) east/north (m/s)^2 or None."""
@@ -250,12 +256,29 @@ class AlignmentPipeline:
 
     # -- stages ---------------------------------------------------------------------------
     def _choose_position(self):
-        self.position, self.position_source = self.gnss.position(self.cfg)
+        self.position, self.position_source = self.gnss.position(self.cfg, self.aided)
 
     def _finish_coarse(self):
         window = self.window.arrays(self.clock.t_first)
         self.window = coarse_stage.CoarseWindow(self.cfg['coarse_duration'])
+        speed, v_sig = self.gnss.speed_over(window[0], self.cfg['gnss_vel_sigma_mps'],
+                                            self.cfg['gnss_pos_sigma_m'])
+        moving = speed is not None and speed > max(self.cfg['motion_speed_mps'], 4.0 * v_sig)
+        if self.cfg['fine_filter'] == 'auto':
+            self.cfg['fine_filter'] = self.cfg['auto_moving_filter' if moving
+                                               else 'auto_still_filter']
+            self.aided = moving
+        elif moving and not self.aided:
+            self._diverged(f'GNSS shows the base moving at {speed:.1f} m/s: the stationary '
+                           f"filter {self.cfg['fine_filter']} cannot align it (use "
+                           'fine_filter auto or a GNSS-aided filter)')
+            return
         self._choose_position()          # a GNSS fix may have come in during coarse
+        if self.cfg['sensor_self_check']:
+            # biases only where the base is known to be at rest: GNSS says so, or (a
+            # stationary filter, chosen by the user or by auto) there is no GNSS
+            self._self_check(window, at_rest=not moving and (speed is not None
+                                                             or not self.aided))
         if self.aided:
             res, info, reason = coarse_stage.moving_base(window, self.cfg, self.noise,
                                                          self.position, self.gnss,
@@ -267,15 +290,29 @@ class AlignmentPipeline:
         if reason is not None:
             self._diverged(reason)
             return
-        self.warnings.extend(res.warnings)
+        no_heading = self.check is not None and not self.check.heading_observable
+        # the self-check's finding replaces the coarse stage's own warning about the gyro
+        self.warnings.extend(w for w in res.warnings
+                             if not (no_heading and not self.aided and w.startswith('gyro bias')))
         self._start_engine(res)
         # fixes that came in during coarse alignment are history, not measurements
         self.gnss.pending.clear()
 
+    def _self_check(self, window, at_rest):
+        """Check the sensor model against the coarse window; widen it where they disagree."""
+        self.check = self_check.check(window, self.position, self.cfg, at_rest)
+        if self.check.widened:
+            self.cfg.update(self.check.widened)
+            self.noise = noise_spec(self.cfg)
+        self.warnings.extend(self.check.findings)
+        if not self.check.heading_observable and not self.aided:
+            self.warnings.append(self_check.NO_HEADING)
+
     def _start_engine(self, start):
         engine, floor, warnings = make_engine(self.cfg, self.noise, start, bool(self.gnss.vels))
         self.warnings.extend(warnings)
-        self.fine = FineStage(engine, floor, self.clock, self.cfg)
+        heading_known = self.aided or self.check is None or self.check.heading_observable
+        self.fine = FineStage(engine, floor, self.clock, self.cfg, heading_known)
 
     def _fill_last(self, out):
         """Put the coarse result into the last row of a coarse block."""

@@ -27,10 +27,17 @@ def pipeline_status(p):
         P_e = euler_cov_from_phi_cov(dcm_to_euler(fine.mech.C_b_n), fine.attitude_cov())
         for k, name in enumerate(('roll', 'pitch', 'yaw')):
             s[f'sigma_{name}_deg'] = float(np.sqrt(max(P_e[k, k], 0.0)) / DEG)
+        tilt, heading = fine.readiness()
+        s.update(tilt_ready=tilt, heading_ready=heading, heading_observable=fine.heading_known,
+                 not_aligned_reason='' if s['phase'] == 'aligned' else fine.not_aligned)
         s.update(fine.engine.status())
         if p.aided:
             s.update({f'gnss_{k}': v for k, v in p.gnss.counts.items()})
     s.update({f'coarse_{k}': v for k, v in p.coarse_info.items()})
+    if p.check is not None:
+        s['self_check_still'] = p.check.still
+        s['self_check_widened'] = ' '.join(f'{k}={v:.4g}' for k, v in p.check.widened.items())
+        s.update({f'self_check_{k}': float(v) for k, v in p.check.figures.items()})
     return s
 
 

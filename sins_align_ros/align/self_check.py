@@ -1,0 +1,194 @@
+"""Sensor self-check: the configured sensor model against what the coarse window shows.
+
+A sigma we publish is only as honest as the sensor model behind it, and most users
+keep the defaults (a navigation-grade IMU) whatever IMU they carry. So before the
+fine filter starts, the coarse window is checked against the model, and where the
+data contradict it the model is widened to what the data show (never narrowed) and
+the finding is reported:
+
+* **White noise** (Allan-style): for white noise the Allan variance of the 1-s means of
+  the rate and the specific force is ARW^2 / 1 s (VRW^2 / 1 s), and the variance of
+  sample-to-sample differences is 2 ARW^2 / dt. Each is inflated by something else:
+  base motion and sway (low frequencies) inflate the first, quantization and vibration
+  (high frequencies) the second. Only where the two agree (within :data:`WHITE_AGREE`)
+  is the noise evidently white; then their geometric mean widens the configured
+  density when it is more than :data:`NOISE_RATIO` times larger. Only at rest: on a
+  moving base vibration adds broadband specific force that is not the sensor's (there
+  the consistency of the filter's innovations is the check).
+* **Biases on a still base** (the window shows no motion once the noise is right):
+  the mean specific force must have the magnitude of normal gravity, so
+  ``|f| - g`` is the accelerometer bias along the vertical; the mean rate along the
+  measured vertical must be ``W sin(L)`` and its horizontal magnitude ``W cos(L)``, so
+  their differences bound the gyro bias. A bound beyond two model sigmas
+  (plus what noise, gravity-model and scale-factor errors explain) widens the bias
+  sigma to the bound. On a moving base this check is skipped (said so).
+* **Grade**: noise found larger than configured means the IMU is not of the configured
+  grade, and its biases are then larger too; the bias sigmas are raised to at least
+  :data:`GYRO_BIAS_PER_ARW` / :data:`ACCEL_BIAS_PER_VRW` times the measured noise (near
+  the upper end of the bias-to-noise ratios of our sensor-grade presets, which span
+  10-67 deg/h per deg/sqrt(h) and 6-14 ug per ug/sqrt(Hz)). At rest a horizontal
+  accelerometer bias and most of a gyro bias cannot be told from tilt and heading, so
+  this is the only check that catches them.
+* **Heading observability**: a gyro whose bias sigma (after widening) is not small
+  against the horizontal Earth rate cannot find north at rest; the result says so
+  and the stationary filters publish the heading as unknown.
+
+Not in the seeds; it is what makes the published sigma a claim that holds with a
+wrong or default sensor model.
+"""
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..nav import earth
+from ..nav.coarse import detect_motion
+from ..units import DPH, DPSH, UG
+
+#: a noise estimate widens the configured density when it is this many times larger
+NOISE_RATIO = 2.0
+#: white noise: the sample-level and the 1-s densities agree within this factor
+WHITE_AGREE = 2.0
+#: specific-force magnitude that normal gravity, height and scale factor may explain, m/s^2
+GRAVITY_TOL = 300.0 * UG
+#: rate the gravity direction and scale factors may explain on a still base, rad/s
+RATE_TOL = 0.05 * DPH
+#: typical bias-to-noise ratios: gyro deg/h per deg/sqrt(h), accelerometer ug per ug/sqrt(Hz)
+GYRO_BIAS_PER_ARW = 30.0
+ACCEL_BIAS_PER_VRW = 14.0
+#: a gyro bias sigma above this fraction of the horizontal Earth rate: no heading at rest
+HEADING_BIAS_FRACTION = 0.5
+#: the reason given when the heading cannot be found at rest
+NO_HEADING = ('heading unobservable: the gyro bias is not small against the horizontal Earth '
+              'rate, so this IMU cannot find north at rest (needs motion with GNSS aiding, '
+              'or an external heading); heading published as unknown')
+
+
+@dataclass
+class SelfCheck:
+    """Outcome of :func:`check`.
+
+    ``widened``: parameter name -> new value (datasheet units) where the data contradict
+    the configured model; ``findings``: one sentence per widened parameter or skipped
+    check; ``still``: the window shows no motion; ``heading_observable``: the gyro can
+    find north at rest; ``figures``: the measured bounds for diagnostics.
+    """
+
+    widened: dict = field(default_factory=dict)
+    findings: list = field(default_factory=list)
+    still: bool = True
+    heading_observable: bool = True
+    figures: dict = field(default_factory=dict)
+
+
+def white_density(x, dt):
+    """White-noise density estimate from samples ``x`` (N, 3) at interval ``dt`` (s).
+
+    The geometric mean of ``sqrt(AVAR(1 s) * 1 s)`` and the sample-difference density
+    (root means over the axes; the unit of ``x`` times sqrt(s)) where they agree within
+    :data:`WHITE_AGREE`, else NaN (also with fewer than 4 s of data).
+    """
+    m = max(1, int(round(1.0 / dt)))
+    k = len(x) // m
+    if k < 4:
+        return float('nan')
+    x1 = x[:k * m].reshape(k, m, 3).mean(axis=1)
+    allan = math.sqrt(0.5 * float(np.mean(np.diff(x1, axis=0) ** 2)) * m * dt)
+    sample = math.sqrt(0.5 * float(np.mean(np.diff(x, axis=0) ** 2)) * dt)
+    if not allan / WHITE_AGREE <= sample <= allan * WHITE_AGREE:
+        return float('nan')
+    return math.sqrt(allan * sample)
+
+
+def check(window, position, cfg, at_rest=True):
+    """Check the coarse window ``(t, dtheta, dv, dt)`` against the sensor model in ``cfg``.
+
+    ``position`` (3,) rad, rad, m; ``at_rest``: nothing says the base moves (no GNSS
+    speed; an IMU cannot see a constant velocity, and on a moving base the transport
+    rate and Coriolis terms would read as biases). Returns a :class:`SelfCheck`.
+    """
+    _, dth, dvv, dts = window
+    dt = float(np.mean(dts))
+    T = float(np.sum(dts))
+    lat, _, h = position
+    out = SelfCheck()
+    w = dth / dts[:, None]
+    f = dvv / dts[:, None]
+    arw_cfg = cfg['gyro_arw_dpsh'] * DPSH
+    vrw_cfg = cfg['accel_vrw_ug_rthz'] * UG
+    if not at_rest:
+        out.still = False
+        out.findings.append('sensor self-check skipped: GNSS shows the base moving, or a '
+                            'moving-base filter runs without GNSS')
+        return _heading(out, cfg, lat)
+    arw = white_density(w, dt)
+    vrw = white_density(f, dt)
+    out.figures.update(gyro_noise_dpsh=arw / DPSH, accel_noise_ug_rthz=vrw / UG)
+    if arw > NOISE_RATIO * arw_cfg:
+        out.widened['gyro_arw_dpsh'] = arw / DPSH
+        out.findings.append(f'gyro white noise {arw / DPSH:.3g} deg/sqrt(h) in the data, '
+                            f'{cfg["gyro_arw_dpsh"]:.3g} configured: gyro_arw_dpsh widened')
+        arw_cfg = arw
+        _raise(out, cfg, 'gyro_bias_dph', GYRO_BIAS_PER_ARW * arw / DPSH, 'deg/h')
+    if vrw > NOISE_RATIO * vrw_cfg:
+        out.widened['accel_vrw_ug_rthz'] = vrw / UG
+        out.findings.append(f'accelerometer white noise {vrw / UG:.3g} ug/sqrt(Hz) in the '
+                            f'data, {cfg["accel_vrw_ug_rthz"]:.3g} configured: '
+                            'accel_vrw_ug_rthz widened')
+        vrw_cfg = vrw
+        _raise(out, cfg, 'accel_bias_ug', ACCEL_BIAS_PER_VRW * vrw / UG, 'ug')
+    out.still = not detect_motion(dth, dvv, dts, arw_cfg, vrw_cfg)[0]
+    if out.still:
+        _biases(out, dth.sum(axis=0) / T, dvv.sum(axis=0) / T, T, lat, h, cfg, arw_cfg,
+                vrw_cfg)
+    else:
+        out.findings.append('sensor bias self-check skipped: the base moves in the coarse '
+                            'window')
+    return _heading(out, cfg, lat)
+
+
+def _heading(out, cfg, lat):
+    """Set ``out.heading_observable`` from the (widened) gyro bias sigma; return ``out``."""
+    gyro_sigma = math.hypot(out.widened.get('gyro_bias_dph', cfg['gyro_bias_dph']),
+                            cfg['gyro_bias_instability_dph']) * DPH
+    out.heading_observable = gyro_sigma <= HEADING_BIAS_FRACTION * earth.OMEGA_IE * math.cos(lat)
+    return out
+
+
+def _raise(out, cfg, name, value, unit):
+    """Raise bias sigma ``name`` to ``value`` for the grade the noise shows (if larger)."""
+    if value > cfg[name]:
+        out.widened[name] = value
+        out.findings.append(f'{name} raised from {cfg[name]:.3g} to {value:.3g} {unit}: the '
+                            'noise shows an IMU of a lower grade than configured, whose biases '
+                            'are larger too')
+
+
+def _biases(out, w_b, f_b, T, lat, h, cfg, arw, vrw):
+    """Bias bounds from the window means ``w_b``, ``f_b`` (3,) widen ``out``'s model."""
+    g = earth.gravity(lat, h)
+    f_norm = float(np.linalg.norm(f_b))
+    accel_bound = abs(f_norm - g)
+    accel_sigma = out.widened.get('accel_bias_ug', cfg['accel_bias_ug']) * UG
+    tol_a = 2.0 * accel_sigma + 3.0 * vrw / math.sqrt(T) + GRAVITY_TOL
+    out.figures['accel_bias_bound_ug'] = accel_bound / UG
+    if accel_bound > tol_a:
+        out.widened['accel_bias_ug'] = accel_bound / UG
+        out.findings.append(f'specific force {f_norm:.5g} m/s^2 at rest against gravity '
+                            f'{g:.5g}: an accelerometer bias of at least '
+                            f'{accel_bound / UG:.0f} ug, {accel_sigma / UG:.3g} in the model: '
+                            'accel_bias_ug widened')
+    u = f_b / f_norm
+    w_up = float(w_b @ u)
+    w_h = float(np.linalg.norm(w_b - w_up * u))
+    bound = max(abs(w_up - earth.OMEGA_IE * math.sin(lat)),
+                abs(w_h - earth.OMEGA_IE * math.cos(lat)))
+    gyro_sigma = math.hypot(out.widened.get('gyro_bias_dph', cfg['gyro_bias_dph']),
+                            cfg['gyro_bias_instability_dph']) * DPH
+    tol_g = 2.0 * gyro_sigma + 3.0 * arw / math.sqrt(T) + RATE_TOL
+    out.figures['gyro_bias_bound_dph'] = bound / DPH
+    if bound > tol_g:
+        out.widened['gyro_bias_dph'] = bound / DPH
+        out.findings.append(f'mean rate at rest differs from Earth rate by {bound / DPH:.3g} '
+                            f'deg/h: a gyro bias of at least that, {gyro_sigma / DPH:.3g} in the '
+                            'model: gyro_bias_dph widened')
