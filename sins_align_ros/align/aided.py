@@ -121,6 +121,9 @@ class GnssAidedEngine:
         self.n_updates = 0
         self.n_predict_only = 0
         self.last_nis = float('nan')
+        #: measurements in the last epoch (the NIS's degrees of freedom)
+        self.last_dof = 0
+        self._Qc0 = self.Qc.copy()
 
     # -- IMU rate -------------------------------------------------------------------
     def step_imu(self, dtheta, dv, dt):
@@ -191,6 +194,7 @@ class GnssAidedEngine:
         try:
             upd = kf.step(fx, z, hx, idx, max_nis=max_nis)
             self.last_nis = nis(upd.y, upd.Pzz)
+            self.last_dof = len(upd.y)
         except (np.linalg.LinAlgError, ValueError):
             upd = None
         if upd is None or not (np.all(np.isfinite(kf.x)) and np.all(np.isfinite(kf.P))):
@@ -242,6 +246,18 @@ class GnssAidedEngine:
     def attitude_cov(self):
         """Misalignment covariance about ENU (3, 3), rad^2."""
         return self.kf.P[self.i_phi, self.i_phi]
+
+    def inflate(self, factor):
+        """Inflate the covariance and the process noise by ``factor`` (Q up to 1e6x).
+
+        The consistency monitor's remedy for innovations larger than the filter predicts
+        (:mod:`.consistency`): the state is less certain than the filter thought, and its
+        model drives it too little.
+        """
+        self.kf.P = self.kf.P * factor
+        self.Qc = np.minimum(self.Qc * factor, self._Qc0 * 1e6)
+        if self.adaptive:
+            self.kf.Q = self.kf.Q * factor
 
     def widen(self, var_phi, var_v):
         """Add ``var_phi`` (rad^2) to each misalignment and ``var_v`` to each velocity variance."""

@@ -7,6 +7,10 @@ stamp. Either way, every filter epoch is followed by the convergence check
 (:class:`~.convergence.ConvergenceMonitor`): a converged stage restages the
 stationary filter (up to ``max_stages``) or turns ``fine`` into ``aligned``.
 
+The GNSS-aided engines' innovations are checked against their covariance
+(:class:`~.consistency.ConsistencyMonitor`); an inconsistent filter has its covariance
+inflated and is not ``aligned`` until the test passes again.
+
 ``aligned`` means good enough for the user, not only converged: the last stage must
 have converged (once) and the roll/pitch and heading 1-sigma must be within
 ``aligned_max_tilt_sigma_deg`` / ``aligned_max_heading_sigma_deg``; when either grows
@@ -21,6 +25,7 @@ import math
 
 import numpy as np
 
+from .consistency import ConsistencyMonitor
 from .convergence import ConvergenceMonitor
 from .gnss_gate import FilterDiverged
 from .output import Rows, one_row
@@ -62,6 +67,8 @@ class FineStage:
         self.max_stages = cfg['max_stages']
         self.monitor = ConvergenceMonitor(cfg['stage_min_duration'])
         self.monitor.start(self.t0)
+        #: innovation consistency of the GNSS-aided engines (:mod:`.consistency`)
+        self.consistency = ConsistencyMonitor()
         #: the navigation solution goes out with the rows (``~/odom``)
         self.navigating = engine.navigates and cfg['continue_navigation']
         self._att_cov = None
@@ -94,6 +101,9 @@ class FineStage:
         if not self.heading_known:
             return 'heading unobservable'
         why = []
+        if not self.consistency.consistent:
+            why.append(f'innovations inconsistent (NIS/dof {self.consistency.ratio:.2f} > '
+                       f'{self.consistency.bound:.2f}): covariance inflated')
         if not tilt:
             why.append(f'tilt 1-sigma above {math.degrees(self.max_tilt):g} deg')
         if not heading:
@@ -215,8 +225,12 @@ class FineStage:
             if fix is None:
                 return None
             try:
-                self.engine.update(fix, t_now)
+                upd = self.engine.update(fix, t_now)
             except FilterDiverged as exc:
                 return str(exc)
             gnss.used(fix)
+            if upd is not None:
+                factor = self.consistency.add(self.engine.last_nis, self.engine.last_dof)
+                if factor is not None:
+                    self.engine.inflate(factor)
             self._epoch_done(t_now)

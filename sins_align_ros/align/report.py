@@ -32,6 +32,7 @@ def pipeline_status(p):
                  not_aligned_reason='' if s['phase'] == 'aligned' else fine.not_aligned)
         s.update(fine.engine.status())
         if p.aided:
+            s.update(fine.consistency.status())
             s.update({f'gnss_{k}': v for k, v in p.gnss.counts.items()})
     s.update({f'coarse_{k}': v for k, v in p.coarse_info.items()})
     if p.check is not None:

@@ -171,13 +171,9 @@ def _biases(out, w_b, f_b, T, lat, h, cfg, arw, vrw):
     accel_bound = abs(f_norm - g)
     accel_sigma = out.widened.get('accel_bias_ug', cfg['accel_bias_ug']) * UG
     tol_a = 2.0 * accel_sigma + 3.0 * vrw / math.sqrt(T) + GRAVITY_TOL
-    out.figures['accel_bias_bound_ug'] = accel_bound / UG
-    if accel_bound > tol_a:
-        out.widened['accel_bias_ug'] = accel_bound / UG
-        out.findings.append(f'specific force {f_norm:.5g} m/s^2 at rest against gravity '
-                            f'{g:.5g}: an accelerometer bias of at least '
-                            f'{accel_bound / UG:.0f} ug, {accel_sigma / UG:.3g} in the model: '
-                            'accel_bias_ug widened')
+    _bound(out, 'accel_bias_ug', accel_bound / UG, tol_a / UG, accel_sigma / UG,
+           f'specific force {f_norm:.5g} m/s^2 at rest against gravity {g:.5g}: an '
+           f'accelerometer bias of at least {accel_bound / UG:.0f} ug')
     u = f_b / f_norm
     w_up = float(w_b @ u)
     w_h = float(np.linalg.norm(w_b - w_up * u))
@@ -186,9 +182,14 @@ def _biases(out, w_b, f_b, T, lat, h, cfg, arw, vrw):
     gyro_sigma = math.hypot(out.widened.get('gyro_bias_dph', cfg['gyro_bias_dph']),
                             cfg['gyro_bias_instability_dph']) * DPH
     tol_g = 2.0 * gyro_sigma + 3.0 * arw / math.sqrt(T) + RATE_TOL
-    out.figures['gyro_bias_bound_dph'] = bound / DPH
-    if bound > tol_g:
-        out.widened['gyro_bias_dph'] = bound / DPH
-        out.findings.append(f'mean rate at rest differs from Earth rate by {bound / DPH:.3g} '
-                            f'deg/h: a gyro bias of at least that, {gyro_sigma / DPH:.3g} in the '
-                            'model: gyro_bias_dph widened')
+    _bound(out, 'gyro_bias_dph', bound / DPH, tol_g / DPH, gyro_sigma / DPH,
+           f'mean rate at rest differs from Earth rate by {bound / DPH:.3g} deg/h: a gyro '
+           'bias of at least that')
+
+
+def _bound(out, name, bound, tolerance, model, what):
+    """Record a bias ``bound`` on parameter ``name``; widen to it beyond ``tolerance``."""
+    out.figures[name.replace('_ug', '_bound_ug').replace('_dph', '_bound_dph')] = bound
+    if bound > tolerance:
+        out.widened[name] = bound
+        out.findings.append(f'{what}, {model:.3g} in the model: {name} widened')
