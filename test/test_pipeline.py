@@ -8,7 +8,7 @@ from sins_align_ros.align.session import feed_arrays
 from sins_align_ros.align.limits import scenario_limits
 from sins_align_ros.nav.frames import (attitude_error, euler_error, euler_to_dcm, quat_to_dcm,
                                        rotvec_to_dcm)
-from sins_align_ros.sim.presets import SENSOR_GRADES, misalignment_rad, scenario
+from sins_align_ros.sim.presets import SENSOR_GRADES, alignment_params, misalignment_rad, scenario
 from sins_align_ros.sim.scenario import ScenarioStream
 from sins_align_ros.units import ARCMIN, DEG
 
@@ -188,3 +188,18 @@ def test_invalid_parameters_are_refused():
         AlignmentPipeline({'coarse_duration': -1.0})
     with pytest.raises(ValueError, match='unknown parameter'):
         AlignmentPipeline({'nope': 1})
+
+
+def test_auto_restarts_with_the_moving_filter_when_gnss_shows_the_base_moving():
+    """seed 003's car stands still for its first 30 s, then drives: auto starts the
+    stationary filter at rest and, when GNSS shows the motion, restarts with the GNSS-aided
+    one instead of letting zero-velocity updates pull the attitude."""
+    sc, st, b = simulate('seed003_car', seconds=150.0)
+    p = AlignmentPipeline({**alignment_params(sc, 'auto'), 'coarse_duration': 20.0})
+    p.start_clock(0.0)
+    ran = []
+    out = feed_arrays(p, b.imu, b.gnss, callback=lambda q: ran.append(q.cfg['fine_filter']))
+    assert 'reduced7' in ran and ran[-1] == 'kf'
+    assert any('GNSS shows the base moving' in w for w in p.warnings)
+    e = euler_error(out.euler[-1], b.imu.euler[-1])
+    assert np.all(np.abs(e) <= 3.0 * out.sigma[-1] + 0.2 * DEG), np.degrees(e)

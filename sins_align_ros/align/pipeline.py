@@ -150,10 +150,27 @@ class AlignmentPipeline:
         """
         self.gnss.position_fix(t, lat_deg, lon_deg, h, pos_var, self.clock.t_last,
                                queue=self.fine is not None and self.aided)
+        self._watch_motion(t)
 
     def velocity_fix(self, t, v_n, vel_var=None):
         """Record a GNSS ENU velocity (m/s, (3,)); ``vel_var`` (2,) east/north (m/s)^2 or None."""
         self.gnss.velocity_fix(t, v_n, vel_var)
+        self._watch_motion(t)
+
+    def _watch_motion(self, t):
+        """Restart a stationary filter that GNSS shows moving (zero velocity no longer holds).
+
+        With ``fine_filter: auto`` the next coarse window picks the moving-base filter; a
+        stationary filter chosen explicitly refuses to start while the base moves.
+        """
+        if self.fine is None or self.aided:
+            return
+        speed, v_sig = self.gnss.speed_over(np.array([float(t) - 3.0, float(t)]),
+                                            self.cfg['gnss_vel_sigma_mps'],
+                                            self.cfg['gnss_pos_sigma_m'])
+        if speed is not None and speed > max(self.cfg['motion_speed_mps'], 4.0 * v_sig):
+            self._diverged(f'GNSS shows the base moving at {speed:.1f} m/s: the stationary '
+                           f"filter {self.cfg['fine_filter']} no longer holds")
 
     def start_clock(self, t0):
         """Set the stamp that the first increment starts from (before the first process call)."""
