@@ -69,13 +69,15 @@ class SelfCheck:
     """Outcome of :func:`check`.
 
     ``widened``: parameter name -> new value (datasheet units) where the data contradict
-    the configured model; ``findings``: one sentence per widened parameter or skipped
-    check; ``still``: the window shows no motion; ``heading_observable``: the gyro can
-    find north at rest; ``figures``: the measured bounds for diagnostics.
+    the configured model; ``findings``: one sentence per widened parameter (warnings);
+    ``note``: which checks were skipped and why (informational); ``still``: the window
+    shows no motion; ``heading_observable``: the gyro can find north at rest;
+    ``figures``: the measured bounds for diagnostics.
     """
 
     widened: dict = field(default_factory=dict)
     findings: list = field(default_factory=list)
+    note: str = ''
     still: bool = True
     heading_observable: bool = True
     figures: dict = field(default_factory=dict)
@@ -118,8 +120,8 @@ def check(window, position, cfg, at_rest=True):
     vrw_cfg = cfg['accel_vrw_ug_rthz'] * UG
     if not at_rest:
         out.still = False
-        out.findings.append('sensor self-check skipped: GNSS shows the base moving, or a '
-                            'moving-base filter runs without GNSS')
+        out.note = ('skipped: GNSS shows the base moving, or a moving-base filter runs '
+                    'without GNSS')
         return _heading(out, cfg, lat)
     arw = white_density(w, dt)
     vrw = white_density(f, dt)
@@ -142,8 +144,7 @@ def check(window, position, cfg, at_rest=True):
         _biases(out, dth.sum(axis=0) / T, dvv.sum(axis=0) / T, T, lat, h, cfg, arw_cfg,
                 vrw_cfg)
     else:
-        out.findings.append('sensor bias self-check skipped: the base moves in the coarse '
-                            'window')
+        out.note = 'bias bounds skipped: the base moves (sways) in the coarse window'
     return _heading(out, cfg, lat)
 
 
