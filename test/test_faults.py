@@ -270,3 +270,22 @@ def test_reset_service_works_in_every_phase(rig_factory, phase):
     assert rig.node.pipeline.phase in ('fine', 'aligned')
     err = rig.check_attitude(s, tilt_margin=0.0, head_margin=0.0)
     assert np.all(np.abs(err[:2]) < 0.5 * DEG), err / DEG
+
+
+def test_still_mems_with_node_defaults_says_on_diagnostics_why_no_heading(rig_factory):
+    """Issue 21 must-show 3 over DDS: a MEMS IMU at rest, node defaults but a short coarse
+    window. /diagnostics names the widened sensor model and the unobservable heading; the
+    published yaw variance is the unknown angle's; the tilt is within 3 sigma."""
+    s = _stream('static_mems', 100.0, 50.0)
+    rig = rig_factory(coarse_duration=20.0)
+    rig.play(s)
+    rig.flush_diagnostics()
+    assert rig.said(WARN, 'cannot find north at rest'), rig.messages()
+    assert rig.said(WARN, 'gyro_arw_dpsh widened'), rig.messages()
+    last = {kv.key: kv.value for kv in rig.diags[-1].values}
+    assert last['heading_observable'] == 'False' and last['tilt_ready'] == 'True'
+    assert last['phase'] == 'fine' and 'heading unobservable' in last['not_aligned_reason']
+    assert 'accel_bias_ug' in last['self_check_widened']
+    p = rig.node.pipeline
+    assert p.attitude_cov()[2, 2] == pytest.approx(np.pi ** 2 / 3.0)
+    rig.check_attitude(s, tilt_margin=0.0, head_margin=0.0)

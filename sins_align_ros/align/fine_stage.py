@@ -55,8 +55,6 @@ class FineStage:
         self.heading_known = bool(heading_known)
         self.max_tilt = math.radians(cfg['aligned_max_tilt_sigma_deg'])
         self.max_heading = math.radians(cfg['aligned_max_heading_sigma_deg'])
-        #: why the phase is not ``aligned`` (empty when it is)
-        self.not_aligned = 'converging'
         #: the last stage has converged (latched): from then on the bounds decide
         self.converged = False
         self.floor = np.asarray(floor, dtype=float)
@@ -95,6 +93,14 @@ class FineStage:
         heading = self.heading_known and math.sqrt(max(P[2, 2], 0.0)) <= self.max_heading
         return tilt, heading
 
+    def why_not_aligned(self):
+        """Return why the phase is not ``aligned`` ('' when it is)."""
+        if self.phase == ALIGNED:
+            return ''
+        why = [] if self.converged else ['converging']
+        ready = self._ready_reason()
+        return '; '.join(why + ([ready] if ready else []))
+
     def _ready_reason(self):
         """Return why the attitude is not good enough for ``aligned`` ('' when it is)."""
         tilt, heading = self.readiness()
@@ -130,10 +136,10 @@ class FineStage:
                 self.monitor.start(t)
                 return
             self.converged = True
-        self.not_aligned = self._ready_reason()
-        if self.phase == FINE and not self.not_aligned:
+        ready = not self._ready_reason()
+        if self.phase == FINE and ready:
             self.phase = ALIGNED
-        elif self.phase == ALIGNED and self.not_aligned:
+        elif self.phase == ALIGNED and not ready:
             self.phase = FINE
 
     # -- stepping --------------------------------------------------------------------------

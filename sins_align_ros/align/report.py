@@ -29,7 +29,7 @@ def pipeline_status(p):
             s[f'sigma_{name}_deg'] = float(np.sqrt(max(P_e[k, k], 0.0)) / DEG)
         tilt, heading = fine.readiness()
         s.update(tilt_ready=tilt, heading_ready=heading, heading_observable=fine.heading_known,
-                 not_aligned_reason='' if s['phase'] == 'aligned' else fine.not_aligned)
+                 not_aligned_reason=fine.why_not_aligned())
         s.update(fine.engine.status())
         if p.aided:
             s.update(fine.consistency.status())
