@@ -11,6 +11,7 @@ every processed sample yields an output row (attitude, 1-sigma Euler angles, pha
 * :mod:`.coarse_stage`: the coarse window and the coarse attitude with its sigma, on
   a still base or (GNSS-aided filters) a moving one;
 * :mod:`.gnss_buffer`: GNSS history and the queue of epochs waiting for the IMU;
+* :mod:`.motion`: whether GNSS shows the base moving; what ``fine_filter: auto`` runs;
 * :mod:`.factory`: the engine of ``fine_filter`` (stationary seed 002; GNSS-aided
   seeds 000, 001, 003, 004);
 * :mod:`.fine_stage`: stepping the engine, its GNSS epochs, convergence, rows;
@@ -20,7 +21,7 @@ A filter failure restarts the alignment from coarse, keeping the GNSS history.
 """
 import numpy as np
 
-from . import coarse_stage, self_check
+from . import coarse_stage, motion, self_check
 from . import params as prm
 from .factory import is_aided, make_engine, noise_spec
 from .fine_stage import ALIGNED, FINE, Clock, FineStage
@@ -158,19 +159,11 @@ class AlignmentPipeline:
         self._watch_motion(t)
 
     def _watch_motion(self, t):
-        """Restart a stationary filter that GNSS shows moving (zero velocity no longer holds).
-
-        With ``fine_filter: auto`` the next coarse window picks the moving-base filter; a
-        stationary filter chosen explicitly refuses to start while the base moves.
-        """
-        if self.fine is None or self.aided:
-            return
-        speed, v_sig = self.gnss.speed_over(np.array([float(t) - 3.0, float(t)]),
-                                            self.cfg['gnss_vel_sigma_mps'],
-                                            self.cfg['gnss_pos_sigma_m'])
-        if speed is not None and speed > max(self.cfg['motion_speed_mps'], 4.0 * v_sig):
-            self._diverged(f'GNSS shows the base moving at {speed:.1f} m/s: the stationary '
-                           f"filter {self.cfg['fine_filter']} no longer holds")
+        """Restart a running stationary filter that GNSS shows moving (:mod:`.motion`)."""
+        if self.fine is not None and not self.aided:
+            moving, speed = motion.gnss_motion(self.gnss, self.cfg, np.array([t - 3.0, t]))
+            if moving:
+                self._diverged(motion.refusal(speed, self.cfg['fine_filter'], 'no longer holds'))
 
     def start_clock(self, t0):
         """Set the stamp that the first increment starts from (before the first process call)."""
@@ -278,17 +271,12 @@ class AlignmentPipeline:
     def _finish_coarse(self):
         window = self.window.arrays(self.clock.t_first)
         self.window = coarse_stage.CoarseWindow(self.cfg['coarse_duration'])
-        speed, v_sig = self.gnss.speed_over(window[0], self.cfg['gnss_vel_sigma_mps'],
-                                            self.cfg['gnss_pos_sigma_m'])
-        moving = speed is not None and speed > max(self.cfg['motion_speed_mps'], 4.0 * v_sig)
-        if self.cfg['fine_filter'] == 'auto':
-            self.cfg['fine_filter'] = self.cfg['auto_moving_filter' if moving
-                                               else 'auto_still_filter']
-            self.aided = moving
-        elif moving and not self.aided:
-            self._diverged(f'GNSS shows the base moving at {speed:.1f} m/s: the stationary '
-                           f"filter {self.cfg['fine_filter']} cannot align it (use "
-                           'fine_filter auto or a GNSS-aided filter)')
+        moving, speed = motion.gnss_motion(self.gnss, self.cfg, window[0])
+        self.cfg['fine_filter'] = motion.choose_filter(self.cfg, moving)
+        self.aided = is_aided(self.cfg['fine_filter'])
+        if moving and not self.aided:
+            self._diverged(motion.refusal(speed, self.cfg['fine_filter'], 'cannot align it '
+                                          '(use fine_filter auto or a GNSS-aided filter)'))
             return
         self._choose_position()          # a GNSS fix may have come in during coarse
         if self.cfg['sensor_self_check']:
