@@ -48,4 +48,14 @@ def test_inflation_scales_the_covariance_and_the_process_noise():
     np.testing.assert_allclose(eng.Qc, 5.0 * Qc)
     for _ in range(10):
         eng.inflate(100.0)
-    np.testing.assert_allclose(eng.Qc, 1e6 * Qc)                 # process noise capped
+    np.testing.assert_allclose(eng.Qc, 1e4 * Qc)                 # process noise capped
+
+
+def test_inflation_never_makes_an_angle_less_known_than_a_full_circle():
+    eng = MovingBaseAlignment(np.eye(3), np.zeros(3), 0.5, 2.0, 0.0, np.eye(10) * 0.5,
+                              np.full(10, 1e-8), np.eye(2), square_root=False)
+    eng.inflate(10.0)
+    P = eng.kf.P
+    np.testing.assert_allclose(np.diag(P)[4:7], np.pi ** 2 / 3.0)   # capped misalignment
+    np.testing.assert_allclose(np.diag(P)[:4], 5.0)                 # other states inflated
+    assert np.all(np.linalg.eigvalsh(P) > 0.0)

@@ -16,6 +16,7 @@ predicts without an update, so an outage only widens the covariance.
 ``measurement`` and ``_feedback`` (and optionally ``_correct_imu``,
 ``_set_process_noise``, ``_interval_ended``).
 """
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,6 +29,8 @@ from .gnss_gate import FilterDiverged
 
 #: the longest interval the error model is propagated without a measurement, s
 MAX_PREDICT = 2.0
+#: variance of an angle known to be anywhere in (-pi, pi] (uniform), rad^2
+ANGLE_UNKNOWN_VAR = math.pi ** 2 / 3.0
 
 
 @dataclass
@@ -137,10 +140,16 @@ class GnssAidedEngine:
         return C
 
     def predict(self):
-        """Predict over the interval so far without a measurement (an epoch without GNSS)."""
-        fx = self._transition()
-        self._set_process_noise()
-        self.kf.predict(fx)
+        """Predict over the interval so far without a measurement (an epoch without GNSS).
+
+        Raises :class:`FilterDiverged` when the numbers break down.
+        """
+        try:
+            fx = self._transition()
+            self._set_process_noise()
+            self.kf.predict(fx)
+        except (np.linalg.LinAlgError, ValueError) as exc:
+            raise FilterDiverged(f'filter diverged in a prediction ({exc})') from None
         self.n_predict_only += 1
         self._restart_interval()
 
@@ -178,11 +187,15 @@ class GnssAidedEngine:
         Returns the filter's update record. Raises :class:`FilterDiverged` on
         non-finite or singular numbers and when the gate gives up (``GnssGate``).
         """
-        z, idx = self.measurement(fix, t_now)
-        fx = self._transition()
+        kf = self.kf
+        try:
+            z, idx = self.measurement(fix, t_now)
+            fx = self._transition()
+        except (np.linalg.LinAlgError, ValueError):
+            raise FilterDiverged(f'filter diverged at t={fix.t:.3f} s (non-finite navigation '
+                                 'state)') from None
         rows = self.rows[idx]
         hx = batched(lambda X: X[rows])
-        kf = self.kf
         self._set_process_noise()
         if self.use_reported_cov:          # never for an adaptive filter (see __init__)
             kf.R = self.R_nominal.copy()
@@ -248,14 +261,20 @@ class GnssAidedEngine:
         return self.kf.P[self.i_phi, self.i_phi]
 
     def inflate(self, factor):
-        """Inflate the covariance and the process noise by ``factor`` (Q up to 1e6x).
+        """Inflate the covariance and the process noise by ``factor`` (Q up to 1e4x).
 
         The consistency monitor's remedy for innovations larger than the filter predicts
         (:mod:`.consistency`): the state is less certain than the filter thought, and its
         model drives it too little.
         """
-        self.kf.P = self.kf.P * factor
-        self.Qc = np.minimum(self.Qc * factor, self._Qc0 * 1e6)
+        P = self.kf.P * factor
+        # a misalignment is never more uncertain than an angle anywhere in a circle
+        # (variance pi^2/3): scale those rows and columns down to it, which keeps P PSD
+        k = np.arange(len(P))[self.i_phi]
+        s = np.ones(len(P))
+        s[k] = np.sqrt(np.minimum(1.0, ANGLE_UNKNOWN_VAR / np.diag(P)[k]))
+        self.kf.P = P * np.outer(s, s)
+        self.Qc = np.minimum(self.Qc * factor, self._Qc0 * 1e4)
         if self.adaptive:
             self.kf.Q = self.kf.Q * factor
 

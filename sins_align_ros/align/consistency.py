@@ -31,7 +31,7 @@ PROBABILITY = 0.999
 #: an epoch's NIS counts at most the chi-square quantile of this probability
 WINSOR = 0.9999
 #: largest covariance inflation at one time
-MAX_INFLATION = 100.0
+MAX_INFLATION = 10.0
 
 
 class ConsistencyMonitor:

@@ -25,6 +25,7 @@ import math
 
 import numpy as np
 
+from .aided import ANGLE_UNKNOWN_VAR
 from .consistency import ConsistencyMonitor
 from .convergence import ConvergenceMonitor
 from .gnss_gate import FilterDiverged
@@ -32,7 +33,7 @@ from .output import Rows, one_row
 
 FINE, ALIGNED = 'fine', 'aligned'
 #: variance of an angle known to be anywhere in (-pi, pi] (uniform): pi^2 / 3, rad^2
-HEADING_UNKNOWN_VAR = math.pi ** 2 / 3.0
+HEADING_UNKNOWN_VAR = ANGLE_UNKNOWN_VAR
 
 
 class Clock:
@@ -83,6 +84,10 @@ class FineStage:
                 P = P.copy()
                 P[2, :2] = P[:2, 2] = 0.0
                 P[2, 2] = HEADING_UNKNOWN_VAR
+            elif np.any(np.diag(P) > ANGLE_UNKNOWN_VAR):
+                # nothing is less known than an angle anywhere in a circle
+                s = np.sqrt(np.minimum(1.0, ANGLE_UNKNOWN_VAR / np.diag(P)))
+                P = P * np.outer(s, s)
             self._att_cov = P
         return self._att_cov
 
@@ -168,7 +173,16 @@ class FineStage:
         n_pred = eng.n_predict_only
         for k in range(n):
             tk = t[k]
-            Cs[k] = eng.step_imu(dtheta[k], dv[k], tk - c.t_last)
+            try:
+                Cs[k] = eng.step_imu(dtheta[k], dv[k], tk - c.t_last)
+            except FilterDiverged as exc:
+                c.t_last = tk
+                Cs[k] = m.C_b_n
+                if nav is not None:
+                    nav[k] = np.nan
+                parts.append(Rows(t[start:k + 1], Cs[start:k + 1], eng.attitude_cov(), FINE,
+                                  None if nav is None else nav[start:k + 1]))
+                return parts, offset + k + 1, str(exc)
             c.t_last = tk
             if eng.n_predict_only != n_pred:     # an epoch without GNSS: the sigma grew
                 n_pred = eng.n_predict_only
@@ -208,7 +222,12 @@ class FineStage:
                 self._epoch_done(t)
         else:
             n_pred = eng.n_predict_only
-            C = eng.step_imu(dtheta, dv, dt)
+            try:
+                C = eng.step_imu(dtheta, dv, dt)
+            except FilterDiverged as exc:
+                c.t_last = t
+                nav = np.full((1, 6), np.nan) if self.navigating else None
+                return one_row(t, eng.mech.C_b_n, eng.attitude_cov(), FINE, nav), str(exc)
             c.t_last = t
             if eng.n_predict_only != n_pred:     # an epoch without GNSS: the sigma grew
                 self._att_cov = None
