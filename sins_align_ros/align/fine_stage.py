@@ -170,45 +170,41 @@ class FineStage:
         Cs = np.empty((n, 3, 3))
         nav = np.empty((n, 6)) if self.navigating else None
         parts, start = [], 0
+
+        def cut(end, cov, phase):
+            parts.append(Rows(t[start:end], Cs[start:end], cov, phase,
+                              None if nav is None else nav[start:end]))
+
         n_pred = eng.n_predict_only
         for k in range(n):
             tk = t[k]
+            reason = None
             try:
                 Cs[k] = eng.step_imu(dtheta[k], dv[k], tk - c.t_last)
             except FilterDiverged as exc:
-                c.t_last = tk
+                reason = str(exc)
+            c.t_last = tk
+            predicted = reason is None and eng.n_predict_only != n_pred
+            due = reason is None and gnss.due(tk)
+            if (predicted or due) and k > start:     # the rows so far keep their covariance
+                cut(k, self.attitude_cov(), self.phase)
+                start = k
+            if predicted:                            # an epoch without GNSS: the sigma grew
+                n_pred = eng.n_predict_only
+                self._att_cov = None
+            if due:
+                reason = self._apply_gnss(tk, gnss)
+            if reason is not None or due:
                 Cs[k] = m.C_b_n
+            if reason is not None:                   # diverged: the stage ends at this row
                 if nav is not None:
                     nav[k] = np.nan
-                parts.append(Rows(t[start:k + 1], Cs[start:k + 1], eng.attitude_cov(), FINE,
-                                  None if nav is None else nav[start:k + 1]))
-                return parts, offset + k + 1, str(exc)
-            c.t_last = tk
-            if eng.n_predict_only != n_pred:     # an epoch without GNSS: the sigma grew
-                n_pred = eng.n_predict_only
-                if k > start:
-                    parts.append(Rows(t[start:k], Cs[start:k], self.attitude_cov(), self.phase,
-                                      None if nav is None else nav[start:k]))
-                    start = k
-                self._att_cov = None
-            if gnss.due(tk):
-                if k > start:
-                    parts.append(Rows(t[start:k], Cs[start:k], self.attitude_cov(), self.phase,
-                                      None if nav is None else nav[start:k]))
-                    start = k
-                reason = self._apply_gnss(tk, gnss)
-                Cs[k] = m.C_b_n
-                if reason is not None:
-                    if nav is not None:
-                        nav[k] = np.nan
-                    parts.append(Rows(t[start:k + 1], Cs[start:k + 1], eng.attitude_cov(),
-                                      FINE, None if nav is None else nav[start:k + 1]))
-                    return parts, offset + k + 1, reason
+                cut(k + 1, eng.attitude_cov(), FINE)
+                return parts, offset + k + 1, reason
             if nav is not None:
                 v = m.v_n
                 nav[k] = (m.lat, m.lon, m.h, v[0], v[1], v[2])
-        parts.append(Rows(t[start:], Cs[start:], self.attitude_cov(), self.phase,
-                          None if nav is None else nav[start:]))
+        cut(n, self.attitude_cov(), self.phase)
         return parts, offset + n, None
 
     def step(self, t, dtheta, dv, gnss):
@@ -224,19 +220,18 @@ class FineStage:
             n_pred = eng.n_predict_only
             try:
                 C = eng.step_imu(dtheta, dv, dt)
+                reason = None
             except FilterDiverged as exc:
-                c.t_last = t
-                nav = np.full((1, 6), np.nan) if self.navigating else None
-                return one_row(t, eng.mech.C_b_n, eng.attitude_cov(), FINE, nav), str(exc)
+                reason = str(exc)
             c.t_last = t
-            if eng.n_predict_only != n_pred:     # an epoch without GNSS: the sigma grew
+            if reason is None and eng.n_predict_only != n_pred:    # the sigma grew
                 self._att_cov = None
-            if gnss.due(t):
+            if reason is None and gnss.due(t):
                 reason = self._apply_gnss(t, gnss)
-                if reason is not None:
-                    nav = np.full((1, 6), np.nan) if self.navigating else None
-                    return one_row(t, eng.mech.C_b_n, eng.attitude_cov(), FINE, nav), reason
                 C = eng.mech.C_b_n
+            if reason is not None:                   # diverged: the stage ends at this row
+                nav = np.full((1, 6), np.nan) if self.navigating else None
+                return one_row(t, eng.mech.C_b_n, eng.attitude_cov(), FINE, nav), reason
         nav = None
         if self.navigating:
             m = eng.mech

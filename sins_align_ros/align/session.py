@@ -103,14 +103,13 @@ class AlignmentSession:
         action, dtheta, dv = self.imu_input.push(t, w_b, f_b)
         self.last = ImuVerdict(action)
         if action == OK:
-            out = Output.empty()
+            before = None
             if self.imu_input.bridge is not None:
-                out = self._drain()
+                before = self._drain()
                 self.pipeline.widen(*self.imu_input.bridge)
             self._buf.append((t, dtheta, dv))
-            if len(self._buf) >= self.block:
-                out = Output.concat([out, self._drain()])
-            return out
+            out = self._drain() if len(self._buf) >= self.block else Output.empty()
+            return out if before is None else Output.concat([before, out])
         if action == SKIP:
             return Output.empty()
         out = self._drain()
