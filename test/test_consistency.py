@@ -2,6 +2,7 @@
 import numpy as np
 import pytest
 
+from sins_align_ros.align.aided import INFLATION_SPAN, MAX_NOISE_SCALE
 from sins_align_ros.align.consistency import MAX_INFLATION, WINDOW, ConsistencyMonitor
 from sins_align_ros.align.moving import MovingBaseAlignment
 
@@ -41,21 +42,70 @@ def test_one_gnss_outlier_does_not_inflate():
 
 def test_inflation_scales_the_covariance_and_the_process_noise():
     eng = MovingBaseAlignment(np.eye(3), np.zeros(3), 0.5, 2.0, 0.0, np.eye(10) * 1e-4,
-                              np.full(10, 1e-8), np.eye(2), square_root=False)
+                              np.r_[np.ones(9), 0.0], np.eye(2), square_root=False)
     P, Qc = eng.kf.P.copy(), eng.Qc.copy()
     eng.inflate(5.0)
-    np.testing.assert_allclose(eng.kf.P, 5.0 * P)
-    np.testing.assert_allclose(eng.Qc, 5.0 * Qc)
+    np.testing.assert_allclose(eng.kf.P, np.sqrt(5.0) * P)     # the state: sqrt of the factor
+    np.testing.assert_allclose(eng.Qc[:9], 5.0 * Qc[:9])        # the process noise: the factor
+    # a state the model holds constant gets the process noise that would add
+    # (factor - 1) times its variance over INFLATION_SPAN seconds
+    assert eng.Qc[9] == pytest.approx(4.0 * eng.kf.P[9, 9] / INFLATION_SPAN)
     for _ in range(10):
         eng.inflate(100.0)
-    np.testing.assert_allclose(eng.Qc, 1e4 * Qc)                 # process noise capped
+    np.testing.assert_allclose(eng.Qc[:9], 1e4 * Qc[:9])        # process noise capped
 
 
 def test_inflation_never_makes_an_angle_less_known_than_a_full_circle():
-    eng = MovingBaseAlignment(np.eye(3), np.zeros(3), 0.5, 2.0, 0.0, np.eye(10) * 0.5,
+    eng = MovingBaseAlignment(np.eye(3), np.zeros(3), 0.5, 2.0, 0.0, np.eye(10) * 2.0,
                               np.full(10, 1e-8), np.eye(2), square_root=False)
     eng.inflate(10.0)
     P = eng.kf.P
     np.testing.assert_allclose(np.diag(P)[4:7], np.pi ** 2 / 3.0)   # capped misalignment
-    np.testing.assert_allclose(np.diag(P)[:4], 5.0)                 # other states inflated
+    np.testing.assert_allclose(np.diag(P)[:4], 2.0 * np.sqrt(10.0))  # other states inflated
     assert np.all(np.linalg.eigvalsh(P) > 0.0)
+
+
+def _epochs(rng, n, scale, lag1):
+    """``n`` epochs of 2-row normalised innovations: AR(1) with ``lag1``, std ``scale``."""
+    u = np.zeros((n, 2))
+    e = rng.standard_normal((n, 2))
+    for k in range(n):
+        u[k] = lag1 * (u[k - 1] if k else 0.0) + np.sqrt(1.0 - lag1 ** 2) * e[k]
+    return scale * u
+
+
+def _feed_rows(mon, u):
+    out = []
+    for v in u:
+        out.append((mon.add(float(v @ v), 2, v, np.array([0, 1])), dict(mon.r_factors)))
+    return out
+
+
+def test_white_excess_innovations_inflate_the_measurement_noise_not_the_state():
+    mon = ConsistencyMonitor()
+    out = _feed_rows(mon, _epochs(np.random.default_rng(11), 3 * WINDOW, 3.0, -0.3))
+    fired = [(f, r) for f, r in out if f is not None or r]
+    assert fired and all(f is None for f, _ in fired)           # never the state
+    assert set(fired[0][1]) == {0, 1}
+    assert all(3.0 < v <= MAX_INFLATION for v in fired[0][1].values())   # about 9
+    assert mon.n_inflations == 0 and mon.n_r_inflations == len(fired)
+    assert mon.status()['consistency_noise_inflations'] == len(fired)
+
+
+def test_persistent_innovations_inflate_the_state():
+    mon = ConsistencyMonitor()
+    out = _feed_rows(mon, _epochs(np.random.default_rng(12), 3 * WINDOW, 3.0, 0.9))
+    fired = [(f, r) for f, r in out if f is not None or r]
+    assert fired and all(f is not None and not r for f, r in fired)
+    assert mon.n_r_inflations == 0 and mon.n_inflations == len(fired)
+
+
+def test_noise_inflation_scales_R_of_a_fixed_R_filter_and_is_capped():
+    eng = MovingBaseAlignment(np.eye(3), np.zeros(3), 0.5, 2.0, 0.0, np.eye(10) * 1e-4,
+                              np.full(10, 1e-8), np.eye(2), square_root=False)
+    assert eng.sets_R
+    eng.inflate_noise({1: 9.0})
+    np.testing.assert_allclose(eng.R_scale, [1.0, 9.0])
+    for _ in range(10):
+        eng.inflate_noise({0: 100.0})
+    assert eng.R_scale[0] == MAX_NOISE_SCALE

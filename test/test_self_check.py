@@ -5,7 +5,9 @@ import numpy as np
 import pytest
 
 from sins_align_ros.align import params as prm
-from sins_align_ros.align.self_check import check, white_density
+from sins_align_ros.align.gnss_buffer import GnssBuffer
+from sins_align_ros.align.self_check import (GYRO_BIAS_PER_ARW, check, difference_density,
+                                             robust_difference_sigma, white_density)
 from sins_align_ros.nav import earth
 from sins_align_ros.units import DEG, DPH, DPSH, UG
 
@@ -84,11 +86,41 @@ def test_mean_rate_off_earth_rate_bounds_the_gyro_bias(axis):
     assert not c.heading_observable
 
 
-def test_a_moving_base_skips_the_check():
-    c = check(still(accel_bias=(0.0, 0.0, 2000.0 * UG), arw=3.0 * DPSH), POS, DEFAULTS,
+def test_a_moving_base_checks_the_noise_but_not_the_biases():
+    # tactical-class gyro noise against the navigation-grade defaults: widened from the
+    # third differences; the accelerometer bias (2000 ug, which the rest check would
+    # bound) is raised only to the tactical class floor, no bias bound is drawn
+    c = check(still(accel_bias=(0.0, 0.0, 2000.0 * UG), arw=0.1 * DPSH), POS, DEFAULTS,
               at_rest=False)
-    assert c.widened == {} and not c.still
-    assert 'skipped' in c.note and c.findings == []
+    assert not c.still and 'bias bounds skipped' in c.note
+    assert c.widened['gyro_arw_dpsh'] == pytest.approx(0.1, rel=0.1)
+    assert c.widened['gyro_bias_dph'] == pytest.approx(GYRO_BIAS_PER_ARW * 0.1, rel=0.1)
+    assert c.widened['accel_bias_ug'] == 500.0
+    assert 'accel_bias_bound_ug' not in c.figures
+
+
+def test_a_moving_base_at_the_configured_noise_widens_nothing():
+    c = check(still(), POS, DEFAULTS, at_rest=False)
+    assert c.widened == {} and c.findings == [] and not c.still
+
+
+def test_difference_density_sees_white_noise_through_smooth_motion():
+    rng = np.random.default_rng(5)
+    dt, sigma = 0.01, 0.02
+    t = np.arange(20000) * dt
+    motion = np.column_stack([np.sin(2 * np.pi * 0.2 * t), np.cos(2 * np.pi * 0.5 * t),
+                              0.3 * t]) * 5.0
+    x = motion + sigma * rng.standard_normal((len(t), 3))
+    assert difference_density(x, dt) == pytest.approx(sigma * np.sqrt(dt), rel=0.03)
+    assert np.isnan(difference_density(x[:50], dt))
+
+
+def test_robust_difference_sigma_ignores_a_few_manoeuvre_starts():
+    rng = np.random.default_rng(6)
+    x = 5.0 * rng.standard_normal((120, 2))
+    x[40:, 0] += 3.0 * np.arange(80) ** 2 / 2.0         # a 3 m/s^2 acceleration starts
+    assert robust_difference_sigma(x) == pytest.approx(5.0, rel=0.2)
+    assert np.isnan(robust_difference_sigma(x[:5]))
 
 
 def test_the_configured_model_is_never_narrowed():
@@ -96,3 +128,35 @@ def test_the_configured_model_is_never_narrowed():
            'accel_vrw_ug_rthz': 500.0}
     c = check(still(), POS, cfg)
     assert c.widened == {}
+
+
+def _gnss(sigma_m, reported_var=None, seconds=60, seed=3):
+    """Return a GnssBuffer of 1-Hz fixes of a car driving and turning, noise ``sigma_m``."""
+    rng = np.random.default_rng(seed)
+    buf = GnssBuffer()
+    R = earth.radii(LAT)
+    for k in range(seconds + 1):
+        e, n = 10.0 * k, 0.05 * k ** 2
+        e, n = e + sigma_m * rng.standard_normal(), n + sigma_m * rng.standard_normal()
+        lat = POS[0] + n / (R[0] + 0.0)
+        lon = POS[1] + e / (R[1] * math.cos(POS[0]))
+        pv = None if reported_var is None else (reported_var, reported_var)
+        buf.position_fix(float(k), lat / DEG, lon / DEG, 0.5 * rng.standard_normal(), pv, None,
+                         False)
+    return buf
+
+
+@pytest.mark.parametrize('ff, reported, widened', [('kf', None, True), ('ckf', 25.0, False),
+                                                   ('kf', 25.0, True), ('ckf', 1.0, True)])
+def test_gnss_noise_above_the_model_widens_it(ff, reported, widened):
+    # 5 m fixes: configured 1 m (kf, ckf without reports) or reported 5 m (used by ckf
+    # only) or reported 1 m (too small: widened and no longer used)
+    cfg = {**DEFAULTS, 'fine_filter': ff}
+    c = check(still(), POS, cfg, at_rest=False, gnss=_gnss(5.0, reported))
+    assert c.figures['gnss_pos_noise_m'] == pytest.approx(5.0, rel=0.3)
+    assert ('gnss_pos_sigma_m' in c.widened) == widened
+    if widened:
+        assert c.widened['gnss_pos_sigma_m'] == pytest.approx(5.0, rel=0.3)
+        assert any('gnss_pos_sigma_m widened' in f for f in c.findings)
+    assert c.widened.get('use_reported_gnss_covariance', True) == (reported != 1.0)
+    assert 'gnss_height_sigma_m' not in c.widened          # 0.5 m against 2 m configured

@@ -21,8 +21,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..filters.asckf import ASCKF
+from ..filters.ckf import CKF
 from ..filters.cubature import batched
 from ..filters.kf import nis
+from ..filters.linear_kf import KF
+from ..filters.ukf import UKF
 from ..nav.mechanization import MechanizationOptions, Strapdown
 from ..units import DPH
 from .gnss_gate import FilterDiverged
@@ -31,6 +35,12 @@ from .gnss_gate import FilterDiverged
 MAX_PREDICT = 2.0
 #: variance of an angle known to be anywhere in (-pi, pi] (uniform), rad^2
 ANGLE_UNKNOWN_VAR = math.pi ** 2 / 3.0
+#: filters whose R is what the engine gives them (the others estimate it themselves)
+FIXED_R_FILTERS = (KF, CKF, UKF, ASCKF)
+#: seconds over which an inflation's process-noise floor would add the state's variance
+INFLATION_SPAN = 100.0
+#: largest inflation of a measurement noise variance by the consistency monitor
+MAX_NOISE_SCALE = 1e4
 
 
 @dataclass
@@ -124,9 +134,15 @@ class GnssAidedEngine:
         self.n_updates = 0
         self.n_predict_only = 0
         self.last_nis = float('nan')
-        #: measurements in the last epoch (the NIS's degrees of freedom)
+        #: measurements in the last epoch (the NIS's degrees of freedom), their
+        #: innovations normalised row by row and their rows of the measurement vector
         self.last_dof = 0
+        self.last_u = self.last_rows = None
         self._Qc0 = self.Qc.copy()
+        #: factors on the measurement noise variances (the consistency monitor's remedy);
+        #: used by filters that take R from the engine (:data:`FIXED_R_FILTERS`)
+        self.R_scale = np.ones(len(self.R_nominal))
+        self.sets_R = type(kf) in FIXED_R_FILTERS and not self.adaptive
 
     # -- IMU rate -------------------------------------------------------------------
     def step_imu(self, dtheta, dv, dt):
@@ -197,7 +213,16 @@ class GnssAidedEngine:
         rows = self.rows[idx]
         hx = batched(lambda X: X[rows])
         self._set_process_noise()
-        if self.use_reported_cov:          # never for an adaptive filter (see __init__)
+        if self.sets_R:
+            R = self.R_nominal.copy()
+            if self.use_reported_cov:
+                if fix.pos_var is not None:
+                    R[0, 0], R[1, 1] = fix.pos_var
+                if self.use_velocity and fix.vel_var is not None:
+                    R[2, 2], R[3, 3] = fix.vel_var
+            s = np.sqrt(self.R_scale)
+            kf.R = R * np.outer(s, s)
+        elif self.use_reported_cov:        # never for an adaptive filter (see __init__)
             kf.R = self.R_nominal.copy()
             if fix.pos_var is not None:
                 kf.R[0, 0], kf.R[1, 1] = fix.pos_var
@@ -208,6 +233,8 @@ class GnssAidedEngine:
             upd = kf.step(fx, z, hx, idx, max_nis=max_nis)
             self.last_nis = nis(upd.y, upd.Pzz)
             self.last_dof = len(upd.y)
+            self.last_u = upd.y / np.sqrt(np.diag(upd.Pzz))
+            self.last_rows = np.asarray(idx)
         except (np.linalg.LinAlgError, ValueError):
             upd = None
         if upd is None or not (np.all(np.isfinite(kf.x)) and np.all(np.isfinite(kf.P))):
@@ -261,22 +288,44 @@ class GnssAidedEngine:
         return self.kf.P[self.i_phi, self.i_phi]
 
     def inflate(self, factor):
-        """Inflate the covariance and the process noise by ``factor`` (Q up to 1e4x).
+        """Inflate the process noise by ``factor`` (up to 1e4x) and the covariance by its root.
 
         The consistency monitor's remedy for innovations larger than the filter predicts
         (:mod:`.consistency`): the state is less certain than the filter thought, and its
-        model drives it too little.
+        model drives it too little. The covariance takes only the square root of the
+        factor: the NIS ratio measures the innovation covariance, which a too-small Q
+        keeps too small at every epoch, so most of the remedy belongs in Q; a full jump
+        of P by up to 10x at each failed window threw the attitude of a GNSS-aided
+        filter out of its small-angle model (seed 003's car with default parameters).
+        States the model holds constant (zero Qc) get the process noise that would add
+        ``factor - 1`` times their variance over :data:`INFLATION_SPAN` seconds, since
+        a zero cannot be scaled.
         """
-        P = self.kf.P * factor
+        P = self.kf.P * math.sqrt(factor)
         # a misalignment is never more uncertain than an angle anywhere in a circle
         # (variance pi^2/3): scale those rows and columns down to it, which keeps P PSD
         k = np.arange(len(P))[self.i_phi]
         s = np.ones(len(P))
         s[k] = np.sqrt(np.minimum(1.0, ANGLE_UNKNOWN_VAR / np.diag(P)[k]))
         self.kf.P = P * np.outer(s, s)
-        self.Qc = np.minimum(self.Qc * factor, self._Qc0 * 1e4)
+        # states the model holds constant (zero process noise) get some: the model
+        # error may be theirs (a bias that varies, a constant one larger than its prior)
+        held = self._Qc0 <= 0.0
+        floor = (factor - 1.0) * np.diag(self.kf.P) / INFLATION_SPAN
+        self.Qc = np.where(held, np.maximum(self.Qc, floor),
+                           np.minimum(self.Qc * factor, self._Qc0 * 1e4))
         if self.adaptive:
             self.kf.Q = self.kf.Q * factor
+
+    def inflate_noise(self, factors):
+        """Inflate measurement rows' noise variances: ``factors`` row -> factor.
+
+        The consistency monitor's remedy when the innovations are larger than predicted
+        but white (the receiver is noisier than configured). Capped at
+        :data:`MAX_NOISE_SCALE`; no effect on filters that estimate R themselves.
+        """
+        for r, f in factors.items():
+            self.R_scale[r] = min(self.R_scale[r] * f, MAX_NOISE_SCALE)
 
     def widen(self, var_phi, var_v):
         """Add ``var_phi`` (rad^2) to each misalignment and ``var_v`` to each velocity variance."""
@@ -293,6 +342,7 @@ class GnssAidedEngine:
              'innovation_nis': self.last_nis, 'divergence_test_fired': kf.divergence_flags,
              'Q_diag': [float(v) for v in np.diag(kf.Q)],
              'R_diag': [float(v) for v in np.diag(kf.R)],
+             'R_scale': [float(v) for v in self.R_scale],
              'gyro_drift_dph': [float(v) for v in kf.x[self.i_eps] / DPH]}
         s.update(self.gate.status())
         if getattr(kf, 'lam', None) is not None:

@@ -14,6 +14,20 @@ again. Each NIS is winsorised at the 0.9999 quantile of its own size first, so t
 single GNSS outliers (the innovation gate's and the robust filters' business) do not
 trigger it; a lasting model error does.
 
+Which covariance is too small, the state's or the measurement's? Given each epoch's
+innovations normalised row by row (``u = y / sqrt(diag S)``) and their measurement rows,
+the monitor tells the two apart by the innovations' serial correlation (Mehra's
+whiteness test, one lag): a model error (a drift, a bias the model lacks) makes
+innovations that persist from epoch to epoch (lag-1 correlation near +1), while a
+measurement noise larger than configured makes white ones, or negatively correlated
+ones when the filter follows the noisy fixes. When every row that fails its own
+chi-square test has a lag-1 correlation below :data:`MODEL_LAG1` over its last
+:data:`HISTORY` epochs, the remedy is to inflate those rows' measurement noise
+(:attr:`ConsistencyMonitor.r_factors`) and the state covariance is left alone; otherwise
+the state covariance is inflated as above. Inflating the state for a GNSS noise
+mismatch (a default height sigma of 2 m against a 5 m receiver) would let every epoch
+pull the attitude, and repeated, destroys it.
+
 Not in the seeds (their filters adapt R or Q, or fade, each in its own way); this is
 the one check every GNSS-aided filter shares, so that a published sigma stays a claim.
 """
@@ -32,6 +46,10 @@ PROBABILITY = 0.999
 WINSOR = 0.9999
 #: largest covariance inflation at one time
 MAX_INFLATION = 10.0
+#: epochs of normalised innovations kept per measurement row for the whiteness test
+HISTORY = 30
+#: a failing row whose lag-1 correlation reaches this is a model error, not noise
+MODEL_LAG1 = 0.3
 
 
 class ConsistencyMonitor:
@@ -50,15 +68,28 @@ class ConsistencyMonitor:
         self.bound = float('nan')
         self.n_inconsistent = 0
         self.n_inflations = 0
+        self.n_r_inflations = 0
+        #: measurement row -> factor for its noise variance, set when a failed test is
+        #: put down to the measurement noise (empty otherwise)
+        self.r_factors = {}
+        self._u = {}
 
-    def add(self, nis, dof):
+    def add(self, nis, dof, u=None, rows=None):
         """Record one epoch's NIS with ``dof`` measurements; return an inflation factor or None.
 
-        The factor (> 1) is returned when the window's test fails; the window then
-        restarts, so the next verdict uses innovations of the inflated filter.
+        ``u`` (dof,): the innovations normalised row by row, ``rows`` (dof,) their
+        measurement rows (optional; without them every failure inflates the state).
+        The factor (> 1) for the state covariance is returned when the window's test
+        fails and the failure is the model's; when it is the measurement noise's,
+        None is returned and :attr:`r_factors` says which rows' noise to inflate. The
+        window then restarts, so the next verdict uses innovations of the inflated filter.
         """
+        self.r_factors = {}
         if not (dof > 0 and math.isfinite(nis)):
             return None
+        if u is not None and rows is not None:
+            for r, v in zip(np.asarray(rows).tolist(), np.asarray(u, dtype=float)):
+                self._u.setdefault(r, deque(maxlen=HISTORY)).append(float(v))
         self._nis.append(min(nis, chi2_quantile(WINSOR, dof)))
         self._dof.append(dof)
         self._raw.append(nis / dof)
@@ -71,14 +102,37 @@ class ConsistencyMonitor:
         if self.consistent:
             return None
         self.n_inconsistent += 1
-        self.n_inflations += 1
         factor = min(max(float(np.median(self._raw)), self.ratio), MAX_INFLATION)
         self._nis.clear()
         self._dof.clear()
         self._raw.clear()
+        self.r_factors = self._noise_rows()
+        if self.r_factors:
+            self.n_r_inflations += 1
+            for r in self.r_factors:
+                self._u[r].clear()
+            return None
+        self.n_inflations += 1
         return factor
+
+    def _noise_rows(self):
+        """Rows to inflate the measurement noise of, with factors; empty for a model error."""
+        failing = {}
+        for r, hist in self._u.items():
+            u = np.array(hist)
+            if len(u) < self.window:
+                continue
+            ms = float(np.mean(u[-self.window:] ** 2))
+            if ms <= chi2_quantile(self.probability, self.window) / self.window:
+                continue
+            lag1 = float(np.sum(u[1:] * u[:-1]) / np.sum(u * u))
+            if lag1 >= MODEL_LAG1:
+                return {}
+            failing[r] = min(ms, MAX_INFLATION)
+        return failing
 
     def status(self):
         """Figures for diagnostics."""
         return {'consistency_ok': self.consistent, 'consistency_nis_ratio': self.ratio,
-                'consistency_bound': self.bound, 'consistency_inflations': self.n_inflations}
+                'consistency_bound': self.bound, 'consistency_inflations': self.n_inflations,
+                'consistency_noise_inflations': self.n_r_inflations}

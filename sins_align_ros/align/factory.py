@@ -34,6 +34,16 @@ def is_aided(fine_filter):
     return fine_filter in prm.MOVING_FILTERS
 
 
+def uses_reported_covariance(cfg):
+    """Tell whether the engine of ``cfg['fine_filter']`` takes R from the GNSS messages.
+
+    Only seed 000's family does, and not while its Sage-Husa estimator sets R.
+    """
+    ff = cfg['fine_filter']
+    return bool(cfg['use_reported_gnss_covariance']) and (
+        ff == 'ckf' or (ff == 'asckf' and not cfg['asckf_adaptive']))
+
+
 def make_engine(cfg, noise, start, has_velocity):
     """Build the engine of ``cfg['fine_filter']`` from a coarse result ``start``.
 

@@ -250,7 +250,13 @@ class FineStage:
                 return str(exc)
             gnss.used(fix)
             if upd is not None:
-                factor = self.consistency.add(self.engine.last_nis, self.engine.last_dof)
+                eng = self.engine
+                # the measurement-noise remedy only where the engine sets R (the
+                # adaptive filters estimate it themselves)
+                factor = self.consistency.add(eng.last_nis, eng.last_dof, eng.last_u,
+                                              eng.last_rows if eng.sets_R else None)
                 if factor is not None:
-                    self.engine.inflate(factor)
+                    eng.inflate(factor)
+                if self.consistency.r_factors:
+                    eng.inflate_noise(self.consistency.r_factors)
             self._epoch_done(t_now)

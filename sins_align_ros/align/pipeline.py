@@ -305,7 +305,7 @@ class AlignmentPipeline:
 
     def _self_check(self, window, at_rest):
         """Check the sensor model against the coarse window; widen it where they disagree."""
-        self.check = self_check.check(window, self.position, self.cfg, at_rest)
+        self.check = self_check.check(window, self.position, self.cfg, at_rest, self.gnss)
         if self.check.widened:
             self.cfg.update(self.check.widened)
             self.noise = noise_spec(self.cfg)

@@ -38,7 +38,9 @@ def pipeline_status(p):
     if p.check is not None:
         s['self_check_still'] = p.check.still
         s['self_check_note'] = p.check.note
-        s['self_check_widened'] = ' '.join(f'{k}={v:.4g}' for k, v in p.check.widened.items())
+        s['self_check_widened'] = ' '.join(
+            f'{k}={v}' if isinstance(v, bool) else f'{k}={v:.4g}'
+            for k, v in p.check.widened.items())
         s.update({f'self_check_{k}': float(v) for k, v in p.check.figures.items()})
     return s
 

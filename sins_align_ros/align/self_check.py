@@ -12,9 +12,12 @@ the finding is reported:
   base motion and sway (low frequencies) inflate the first, quantization and vibration
   (high frequencies) the second. Only where the two agree (within :data:`WHITE_AGREE`)
   is the noise evidently white; then their geometric mean widens the configured
-  density when it is more than :data:`NOISE_RATIO` times larger. Only at rest: on a
-  moving base vibration adds broadband specific force that is not the sensor's (there
-  the consistency of the filter's innovations is the check).
+  density when it is more than :data:`NOISE_RATIO` times larger.
+* **White noise on a moving base**: the 1-s scatter is the motion's, but motion is
+  smooth at the sample level, so the third differences of the samples (whose variance
+  is 20 sigma^2 for white noise; a smooth motion's third difference falls as (w dt)^3)
+  still show the noise: :func:`difference_density`. Vibration and quantization add to
+  it, so it is an upper bound, used only to widen (by the same rule), never to narrow.
 * **Biases on a still base** (the window shows no motion once the noise is right):
   the mean specific force must have the magnitude of normal gravity, so
   ``|f| - g`` is the accelerometer bias along the vertical; the mean rate along the
@@ -28,7 +31,16 @@ the finding is reported:
   the upper end of the bias-to-noise ratios of our sensor-grade presets, which span
   10-67 deg/h per deg/sqrt(h) and 6-14 ug per ug/sqrt(Hz)). At rest a horizontal
   accelerometer bias and most of a gyro bias cannot be told from tilt and heading, so
-  this is the only check that catches them.
+  this is the only check that catches them. On a moving base the accelerometer noise
+  is mostly vibration, so the accelerometer bias is raised by the grade the *gyro*
+  noise shows (:data:`ACCEL_BIAS_BY_GYRO_NOISE`) instead.
+* **GNSS noise**: the third differences of the fixes in the coarse window (horizontal
+  position, height, and the GNSS velocity when it comes) show the receiver's noise the same
+  way (a vehicle's jerk hardly enters them at 1-10 Hz); a robust (median) estimate
+  ignores the few epochs where a manoeuvre starts. Where it is more than
+  :data:`NOISE_RATIO` times the configured (or the receiver's reported) sigma, the
+  sigma is widened to it (and reported covariances, then shown to be too small, are
+  no longer used). On a still base and on a moving one alike.
 * **Heading observability**: a gyro whose bias sigma (after widening) is not small
   against the horizontal Earth rate cannot find north at rest; the result says so
   and the stationary filters publish the heading as unknown.
@@ -44,6 +56,7 @@ import numpy as np
 from ..nav import earth
 from ..nav.coarse import detect_motion
 from ..units import DPH, DPSH, UG
+from .factory import uses_reported_covariance
 
 #: a noise estimate widens the configured density when it is this many times larger
 NOISE_RATIO = 2.0
@@ -56,6 +69,11 @@ RATE_TOL = 0.05 * DPH
 #: typical bias-to-noise ratios: gyro deg/h per deg/sqrt(h), accelerometer ug per ug/sqrt(Hz)
 GYRO_BIAS_PER_ARW = 30.0
 ACCEL_BIAS_PER_VRW = 14.0
+#: on a moving base, accelerometer bias floor (ug) by gyro white noise (deg/sqrt(h), upper
+#: edge): navigation, tactical, industrial and consumer MEMS classes
+ACCEL_BIAS_BY_GYRO_NOISE = ((0.003, 100.0), (0.15, 500.0), (0.6, 2000.0), (math.inf, 5000.0))
+#: order of the differences of :func:`difference_density`
+DIFF_ORDER = 3
 #: a gyro bias sigma above this fraction of the horizontal Earth rate: no heading at rest
 HEADING_BIAS_FRACTION = 0.5
 #: the reason given when the heading cannot be found at rest
@@ -102,50 +120,140 @@ def white_density(x, dt):
     return math.sqrt(allan * sample)
 
 
-def check(window, position, cfg, at_rest=True):
+def difference_density(x, dt, order=DIFF_ORDER):
+    """White-noise density upper bound from ``order``-th differences of ``x`` (N, 3).
+
+    For white samples of variance s^2 the ``k``-th difference has variance
+    ``C(2k, k) s^2`` and the density is ``s sqrt(dt)``; smooth motion hardly enters a
+    third difference at IMU rates. Root mean over the axes; NaN with fewer than 100
+    samples.
+    """
+    if len(x) < 100:
+        return float('nan')
+    d = np.diff(x, n=order, axis=0)
+    return math.sqrt(float(np.mean(d * d)) / math.comb(2 * order, order) * dt)
+
+
+def robust_difference_sigma(x, order=DIFF_ORDER):
+    """Noise 1-sigma of the columns of ``x`` (N, k) from the median of ``order``-th differences.
+
+    For white noise the ``k``-th difference is normal with variance ``C(2k, k) sigma^2``
+    and its absolute median is 0.6745 of its sigma. Root mean over the columns; NaN
+    with fewer than 10 rows.
+    """
+    x = np.asarray(x, dtype=float)
+    if len(x) < 10:
+        return float('nan')
+    d = np.diff(x, n=order, axis=0)
+    s = np.median(np.abs(d), axis=0) / (0.6745 * math.sqrt(math.comb(2 * order, order)))
+    return float(np.sqrt(np.mean(s * s)))
+
+
+def _regular(t):
+    """Tell whether stamps ``t`` are evenly spaced (within 10 %)."""
+    d = np.diff(t)
+    return len(d) > 0 and float(np.max(np.abs(d - np.median(d)))) <= 0.1 * float(np.median(d))
+
+
+def gnss_check(out, gnss, t0, t1, cfg):
+    """Widen the GNSS noise of ``cfg`` where the fixes of ``gnss`` in ``[t0, t1]`` show more.
+
+    ``gnss``: the :class:`~.gnss_buffer.GnssBuffer` (its ``fixes`` and ``vels``).
+    """
+    fixes = [f for f in gnss.fixes if t0 <= f[0] <= t1]
+    if len(fixes) >= 10 and _regular([f[0] for f in fixes]):
+        lat, lon, h = (np.array([f[i] for f in fixes]) for i in (1, 2, 3))
+        enu = earth.local_offset_m(lat[0], lon[0], h[0], lat, lon, h)
+        reported = [f[4] for f in fixes if f[4] is not None]
+        _gnss_sigma(out, cfg, 'gnss_pos_sigma_m', robust_difference_sigma(enu[:, :2]),
+                    reported, 'm')
+        _gnss_sigma(out, cfg, 'gnss_height_sigma_m', robust_difference_sigma(enu[:, 2:]),
+                    [], 'm')
+    vels = [v for v in gnss.vels if t0 <= v[0] <= t1]
+    if len(vels) >= 10 and _regular([v[0] for v in vels]):
+        V = np.array([v[1][:2] for v in vels])
+        reported = [v[2] for v in vels if v[2] is not None]
+        _gnss_sigma(out, cfg, 'gnss_vel_sigma_mps', robust_difference_sigma(V), reported,
+                    'm/s')
+
+
+def _gnss_sigma(out, cfg, name, sigma, reported, unit):
+    """Widen GNSS sigma ``name`` to ``sigma`` when the data show more than the model."""
+    out.figures[name.replace('_sigma', '_noise')] = sigma
+    use_reported = uses_reported_covariance(cfg) and len(reported) > 0
+    model = (math.sqrt(float(np.median([np.mean(v) for v in reported]))) if use_reported
+             else cfg[name])
+    if not sigma > NOISE_RATIO * model:
+        return
+    out.widened[name] = sigma
+    if use_reported:
+        out.widened['use_reported_gnss_covariance'] = False
+    out.findings.append(f'GNSS noise {sigma:.3g} {unit} in the fixes, {model:.3g} '
+                        f'{"reported" if use_reported else "configured"}: {name} widened'
+                        + (' and the reported covariances no longer used' if use_reported
+                           else ''))
+
+
+def check(window, position, cfg, at_rest=True, gnss=None):
     """Check the coarse window ``(t, dtheta, dv, dt)`` against the sensor model in ``cfg``.
 
     ``position`` (3,) rad, rad, m; ``at_rest``: nothing says the base moves (no GNSS
     speed; an IMU cannot see a constant velocity, and on a moving base the transport
-    rate and Coriolis terms would read as biases). Returns a :class:`SelfCheck`.
+    rate and Coriolis terms would read as biases); ``gnss``: the
+    :class:`~.gnss_buffer.GnssBuffer` whose fixes in the window are checked (or None).
+    Returns a :class:`SelfCheck`.
     """
-    _, dth, dvv, dts = window
+    tt, dth, dvv, dts = window
     dt = float(np.mean(dts))
     T = float(np.sum(dts))
     lat, _, h = position
     out = SelfCheck()
     w = dth / dts[:, None]
     f = dvv / dts[:, None]
-    arw_cfg = cfg['gyro_arw_dpsh'] * DPSH
-    vrw_cfg = cfg['accel_vrw_ug_rthz'] * UG
+    if gnss is not None:
+        gnss_check(out, gnss, tt[0] - dts[0], tt[-1], cfg)
     if not at_rest:
         out.still = False
-        out.note = ('skipped: GNSS shows the base moving, or a moving-base filter runs '
-                    'without GNSS')
+        _noise(out, cfg, difference_density(w, dt), difference_density(f, dt), moving=True)
+        out.note = ('bias bounds skipped: GNSS shows the base moving, or a moving-base filter '
+                    'runs without GNSS (white noise from third differences of the samples)')
         return _heading(out, cfg, lat)
-    arw = white_density(w, dt)
-    vrw = white_density(f, dt)
+    arw, vrw = _noise(out, cfg, white_density(w, dt), white_density(f, dt), moving=False)
+    out.still = not detect_motion(dth, dvv, dts, arw, vrw)[0]
+    if out.still:
+        _biases(out, dth.sum(axis=0) / T, dvv.sum(axis=0) / T, T, lat, h, cfg, arw, vrw)
+    else:
+        out.note = 'bias bounds skipped: the base moves (sways) in the coarse window'
+    return _heading(out, cfg, lat)
+
+
+def _noise(out, cfg, arw, vrw, moving):
+    """Widen the white noise (and raise the biases) where ``arw``/``vrw`` (SI) exceed the model.
+
+    Returns the densities as widened (the configured ones where not), rad/sqrt(s) and
+    m/s^2/sqrt(Hz).
+    """
     out.figures.update(gyro_noise_dpsh=arw / DPSH, accel_noise_ug_rthz=vrw / UG)
+    arw_cfg = cfg['gyro_arw_dpsh'] * DPSH
+    vrw_cfg = cfg['accel_vrw_ug_rthz'] * UG
     if arw > NOISE_RATIO * arw_cfg:
         out.widened['gyro_arw_dpsh'] = arw / DPSH
         out.findings.append(f'gyro white noise {arw / DPSH:.3g} deg/sqrt(h) in the data, '
                             f'{cfg["gyro_arw_dpsh"]:.3g} configured: gyro_arw_dpsh widened')
         arw_cfg = arw
         _raise(out, cfg, 'gyro_bias_dph', GYRO_BIAS_PER_ARW * arw / DPSH, 'deg/h')
+        if moving:
+            floor = next(b for edge, b in ACCEL_BIAS_BY_GYRO_NOISE if arw / DPSH <= edge)
+            _raise(out, cfg, 'accel_bias_ug', floor, 'ug')
     if vrw > NOISE_RATIO * vrw_cfg:
         out.widened['accel_vrw_ug_rthz'] = vrw / UG
         out.findings.append(f'accelerometer white noise {vrw / UG:.3g} ug/sqrt(Hz) in the '
                             f'data, {cfg["accel_vrw_ug_rthz"]:.3g} configured: '
                             'accel_vrw_ug_rthz widened')
         vrw_cfg = vrw
-        _raise(out, cfg, 'accel_bias_ug', ACCEL_BIAS_PER_VRW * vrw / UG, 'ug')
-    out.still = not detect_motion(dth, dvv, dts, arw_cfg, vrw_cfg)[0]
-    if out.still:
-        _biases(out, dth.sum(axis=0) / T, dvv.sum(axis=0) / T, T, lat, h, cfg, arw_cfg,
-                vrw_cfg)
-    else:
-        out.note = 'bias bounds skipped: the base moves (sways) in the coarse window'
-    return _heading(out, cfg, lat)
+        if not moving:
+            _raise(out, cfg, 'accel_bias_ug', ACCEL_BIAS_PER_VRW * vrw / UG, 'ug')
+    return arw_cfg, vrw_cfg
 
 
 def _heading(out, cfg, lat):
