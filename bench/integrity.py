@@ -1,0 +1,327 @@
+#!/usr/bin/env python3
+"""Integrity matrix (issue 21): whether every published sigma covers the real error.
+
+Every fine filter (and ``auto``, the node's default) through the whole pipeline on the
+scenarios it applies to, for each IMU grade (navigation, tactical, MEMS: the
+scenario's own IMU replaced, ``eval.scenarios.named('name@grade')``) and for what the
+filter is told about the sensors:
+
+- ``right``: the simulated sensors (``sim.presets.alignment_params``);
+- ``defaults``: the node's defaults (``align.params``): only the site (initial
+  latitude, longitude, height) and the filter, nothing about the IMU or the GNSS;
+- ``optimistic``: the right model with every sensor noise and bias sigma (gyro bias,
+  ARW, bias instability, accelerometer bias and VRW, GNSS position, height and
+  velocity sigma) divided by 10.
+
+N seeded runs per cell; per cell the statistics of ``sins_align_ros.eval.integrity``
+(ended inside 3 sigma, silent-wrong runs, final RMS error per ENU axis against the
+analytic limit of ``eval.evidence.limits_of``, sharpness) and a verdict. Writes
+``bench/results/integrity.md``.
+
+Usage: python bench/integrity.py [--runs 10] [--jobs 1] [--filters a,b] [--grades a,b]
+       [--told a,b] [--scenarios a,b] [--duration-scale 1.0] [--runs-for scen=N ...]
+       [--estimate] [--cache] [--raw FILE | --from-raw FILE] [--commit TEXT] [--out FILE]
+"""
+import argparse
+import os
+import pickle
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+# one BLAS thread per worker process
+for _var in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
+    os.environ.setdefault(_var, '1')
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))      # this checkout's package, not an installed copy
+
+from sins_align_ros.align.params import MOVING_FILTERS  # noqa: E402
+from sins_align_ros.eval.cache import simulate_cached  # noqa: E402
+from sins_align_ros.eval.evidence import limits_of  # noqa: E402
+from sins_align_ros.eval.integrity import (cell_stats, run_integrity,  # noqa: E402
+                                           spec_limit, verdict)
+from sins_align_ros.eval.markdown import machine_summary, write_markdown  # noqa: E402
+from sins_align_ros.eval.pool import monte_carlo  # noqa: E402
+from sins_align_ros.eval.report import am  # noqa: E402
+from sins_align_ros.eval.run import run_pipeline  # noqa: E402
+from sins_align_ros.eval.scenarios import named, simulate  # noqa: E402
+from sins_align_ros.sim.presets import alignment_params  # noqa: E402
+
+#: scenario key -> (preset, duration s, why this duration)
+SCENARIOS = {
+    'static': ('static_navigation', 300.0, 'still IMU at 34 N (GNSS position only)'),
+    'ship_sway': ('ship_sway', 300.0, 'moored ship, seed 000 sway and heave'),
+    'seed000': ('seed000_case1', 400.0, 'seed 000 ship: 5 kn, 0.1 g burst at 60 s, '
+                                        'accelerating from 265 s'),
+    'seed001_flight': ('seed001_flight', 420.0, 'seed 001 flight: 150 m/s, 2 m/s^2 at '
+                                                '120-150 s, climb at 350-410 s'),
+    'seed003_car': ('seed003_car', 400.0, 'seed 003 car: still 30 s, then drives, turns '
+                                          'at 100 s and 185 s'),
+    'seed004': ('seed004_medium', 300.0, 'seed 004 USV in severe sea, GNSS outliers'),
+}
+#: filter -> the scenarios it applies to (a stationary filter on the car: its refusal)
+FILTER_SCENARIOS = {
+    'reduced7': ('static', 'ship_sway', 'seed003_car'),
+    'stationary10': ('static', 'ship_sway', 'seed003_car'),
+    'stationary12': ('static', 'ship_sway', 'seed003_car'),
+    'ckf': ('static', 'ship_sway', 'seed000'),
+    'asckf': ('static', 'ship_sway', 'seed000'),
+    'vbckf': ('static', 'seed004'),
+    'vbch': ('static', 'seed004'),
+    'kf': ('static', 'seed003_car', 'seed001_flight'),
+    'vbakf': ('static', 'seed003_car', 'seed001_flight'),
+    'mvbakf': ('static', 'seed003_car', 'seed001_flight'),
+    'ukf': ('static', 'seed003_car', 'seed001_flight'),
+    'auto': ('static', 'ship_sway', 'seed003_car'),
+}
+GRADES = ('navigation', 'tactical', 'mems')
+TOLD = ('right', 'defaults', 'optimistic')
+#: parameters that say where the IMU is, not what it is: the "defaults" cell keeps them
+SITE = ('initial_latitude_deg', 'initial_longitude_deg', 'initial_height_m')
+#: sensor parameters of the right model that are not sigmas (kept by "optimistic")
+NOT_A_SIGMA = ('gyro_bias_tau_s',)
+#: how much too optimistic the "optimistic" model is
+OPTIMISM = 10.0
+FIRST_SEED = 1000
+#: simulation cache of this benchmark (``--cache``), apart from the other benchmarks'
+CACHE = Path(os.environ.get('TMPDIR', '/tmp')) / 'sins_align_integrity_cache'
+#: output rows per second (the scenarios' IMU rate)
+RATE_HZ = 100.0
+
+
+def scenario_of(key, grade, scale=1.0):
+    """Build scenario ``key`` with the IMU of ``grade``, its duration times ``scale``."""
+    preset, duration, _ = SCENARIOS[key]
+    return named(f'{preset}@{grade}', round(duration * scale, 2))
+
+
+def told_params(sc, fine_filter, told):
+    """Parameters the filter gets on scenario ``sc``: ``right``, ``defaults`` or ``optimistic``."""
+    right = alignment_params(sc, fine_filter)
+    if told == 'right':
+        return right
+    if told == 'defaults':
+        return {'fine_filter': fine_filter, **{k: right[k] for k in SITE}}
+    if told == 'optimistic':
+        out = dict(right)
+        for k, v in right.items():
+            if k in SITE or k in NOT_A_SIGMA or k == 'fine_filter':
+                continue
+            if not isinstance(v, float):
+                raise ValueError(f'{k}: not a sensor sigma; say how "optimistic" treats it')
+            out[k] = v / OPTIMISM
+        return out
+    raise ValueError(f'unknown model {told!r}')
+
+
+def run_job(job):
+    """Worker: one scenario, grade and seed; every (filter, told) of the job on the same data.
+
+    ``job``: ``(key, grade, scale, seed, cells, cached)``. Returns
+    ``{(filter, told): run dict}`` (:func:`~sins_align_ros.eval.integrity.run_integrity`
+    plus ``refused``, ``ran`` (the filter the pipeline ran) and ``wall``).
+    """
+    key, grade, scale, seed, cells, cached = job
+    sc = scenario_of(key, grade, scale)
+    data = simulate_cached(sc, seed, CACHE) if cached else simulate(sc, seed)
+    res = {}
+    for f, told in cells:
+        run = run_pipeline(told_params(sc, f, told), data)
+        r = run_integrity(run, RATE_HZ)
+        p = run.pipeline
+        r['refused'] = r['n_samples'] == 0 and any('the stationary filter' in w
+                                                   for w in p.warnings)
+        r['ran'] = p.cfg['fine_filter']
+        r['wall'] = run.wall
+        res[(f, told)] = r
+    return res
+
+
+def plan(args):
+    """Cells and jobs of the requested subset: ``(cells, jobs)``.
+
+    ``cells``: ``[(filter, key, grade, told, runs)]`` in table order; ``jobs``: one per
+    (scenario, grade, seed) holding the cells that run on those data.
+    """
+    cells, per_data = [], {}
+    for f in args.filters:
+        for key in FILTER_SCENARIOS[f]:
+            if key not in args.scenarios:
+                continue
+            n = args.runs_for.get(key, args.runs)
+            for grade in args.grades:
+                for told in args.told:
+                    cells.append((f, key, grade, told, n))
+                    for k in range(n):
+                        per_data.setdefault((key, grade, FIRST_SEED + k), []).append((f, told))
+    jobs = [(key, grade, args.duration_scale, seed, tuple(c), args.cache)
+            for (key, grade, seed), c in per_data.items()]
+    # the longest jobs first, so that a pool ends together
+    jobs.sort(key=lambda j: -SCENARIOS[j[0]][1] * len(j[4]))
+    return cells, jobs
+
+
+def limit_of(sc, ran):
+    """Analytic RMS limit per ENU axis (rad) of the filter that ran (``evidence.limits_of``).
+
+    The limit depends only on whether the filter is GNSS-aided (the velocity
+    reference's heading noise); ``ckf`` and ``reduced7`` stand for the two kinds.
+    """
+    return limits_of(sc, 'ckf' if ran in MOVING_FILTERS else 'reduced7')[0]
+
+
+def fmt3(v, f=am):
+    """Three per-axis values as ``a / b / c`` (``f`` formats one)."""
+    return ' / '.join(f(x) for x in v)
+
+
+def ratio(x):
+    """Sharpness text ('-' when not finite)."""
+    return '-' if not np.isfinite(x) else f'{x:.1f}'
+
+
+def head(args, cmd, commit):
+    """Header lines of the results page."""
+    dur = '; '.join(f'`{k}` = {SCENARIOS[k][0]}, {SCENARIOS[k][1] * args.duration_scale:.0f} s '
+                    f'({SCENARIOS[k][2]})' for k in SCENARIOS if k in args.scenarios)
+    return [
+        '# Integrity matrix (issue 21)', '',
+        f'Command: `{cmd}` on {machine_summary()}; commit {commit}.', '',
+        'Every fine filter and `auto` (the node\'s default) through the whole pipeline '
+        '(coarse, then fine) on the scenarios it applies to, with the scenario\'s IMU '
+        'replaced by a navigation, tactical or MEMS grade one (`sim.presets.SENSOR_GRADES`), '
+        'seeded runs from seed 1000. **told**: `right` = the simulated sensors '
+        '(`alignment_params`); `defaults` = only the site (initial latitude, longitude, '
+        'height) and the filter, every sensor parameter (IMU and GNSS) at the node\'s '
+        'default; `optimistic` = the right model with every IMU and GNSS noise and bias '
+        'sigma divided by 10.', '',
+        f'Scenarios and durations: {dur}.', '',
+        'Columns. **end in 3σ**: share of the runs with an attitude at the end whose final '
+        'ENU misalignment is inside 3x the published sigma on every published axis (the '
+        'published sigma is sqrt(diag) of the misalignment covariance, the '
+        '`orientation_covariance` of `imu/data`; a heading whose variance is an unknown '
+        'angle\'s, pi^2/3, is not a published sigma). **silent**: runs with more than 5 % '
+        'of their 1-s samples after coarse alignment outside 3 sigma on some published '
+        'axis, or any sample beyond 5 sigma. **RMS E/N/U**: final error RMS over the runs '
+        '(arcmin); **limit**: the analytic RMS limit of the evidence report '
+        '(`eval.evidence.limits_of`: seed 002 eq. 15 bias and noise terms over the fine '
+        'time, plus the GNSS velocity reference\'s heading noise for the aided filters; '
+        '"-" where the gyro cannot find north). **sharp.**: mean published sigma at the end '
+        '/ RMS error per axis. **aligned**: share of runs ending `aligned`. **verdict**: '
+        'FAIL for a silent-wrong run, under 95 % ending inside 3 sigma, or a sigma too '
+        'wide: where the error is at the limit (RMS at most 1.5x the larger of the limit '
+        'and the spec limit), mean sigma / max(RMS, spec limit) above 3. The spec limit '
+        '(`eval.integrity.spec_limit`) takes each bias at its full 1 sigma instead of its '
+        'projection: the simulated biases are the same constants in every run and can '
+        'nearly cancel on an axis (north tilt at heading 45 deg), where a consistent '
+        'filter\'s sigma is many times its error. A filter refusing a moving base, a '
+        'declared-unknown heading and an error above the limit are said in brackets, not '
+        'failures.', '']
+
+
+def main(argv=None):
+    """Run the requested cells and write the results page."""
+    ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    ap.add_argument('--runs', type=int, default=10, help='seeded runs per cell')
+    ap.add_argument('--runs-for', nargs='*', default=[], metavar='SCEN=N',
+                    help='fewer (or more) runs for the cells of a scenario')
+    ap.add_argument('--jobs', type=int, default=1, help='processes (default 1)')
+    ap.add_argument('--filters', default=','.join(FILTER_SCENARIOS))
+    ap.add_argument('--grades', default=','.join(GRADES))
+    ap.add_argument('--told', default=','.join(TOLD))
+    ap.add_argument('--scenarios', default=','.join(SCENARIOS))
+    ap.add_argument('--duration-scale', type=float, default=1.0)
+    ap.add_argument('--cache', action='store_true',
+                    help=f'keep the simulations in {CACHE} (repeated subsets)')
+    ap.add_argument('--estimate', action='store_true',
+                    help='print the seconds of data and the jobs, run nothing')
+    ap.add_argument('--commit', help='the commit the code is from (default: git in this '
+                                     'checkout, with its uncommitted package files)')
+    ap.add_argument('--raw', help='also save the per-run results (pickle) to this file')
+    ap.add_argument('--from-raw', help='write the page from saved per-run results (the same '
+                                       'options) instead of running')
+    ap.add_argument('--out', default=str(ROOT / 'bench' / 'results' / 'integrity.md'))
+    args = ap.parse_args(argv)
+    for name, allowed in (('filters', FILTER_SCENARIOS), ('grades', GRADES), ('told', TOLD),
+                          ('scenarios', SCENARIOS)):
+        vals = [v for v in getattr(args, name).split(',') if v]
+        bad = [v for v in vals if v not in allowed]
+        if bad:
+            ap.error(f'--{name}: unknown {", ".join(bad)}; known: {", ".join(allowed)}')
+        setattr(args, name, vals)
+    args.runs_for = {k: int(v) for k, v in (s.split('=') for s in args.runs_for)}
+    cells, jobs = plan(args)
+    data_s = sum(SCENARIOS[j[0]][1] * args.duration_scale * len(j[4]) for j in jobs)
+    print(f'{len(cells)} cells, {len(jobs)} jobs, {data_s:.0f} s of data', file=sys.stderr)
+    if args.estimate:
+        return 0
+    cmd = 'python bench/integrity.py ' + ' '.join(argv if argv is not None else sys.argv[1:])
+    commit = args.commit or commit_of(ROOT)
+    if args.from_raw:           # the page of an earlier run: its command and commit
+        with open(args.from_raw, 'rb') as fh:
+            per_job, wall, cmd, commit = pickle.load(fh)
+    else:
+        t0 = time.monotonic()
+        per_job = monte_carlo(run_job, jobs, args.jobs)
+        wall = time.monotonic() - t0
+        if args.raw:
+            with open(args.raw, 'wb') as fh:
+                pickle.dump((per_job, wall, cmd, commit), fh)
+    runs = {}
+    for job, res in zip(jobs, per_job):
+        for (f, told), r in res.items():
+            runs.setdefault((f, job[0], job[1], told), []).append(r)
+
+    rows = ['| filter | scenario | grade | told | runs | end in 3σ | silent | RMS E / N / U (\') '
+            '| limit E / N / U (\') | sharp. E / N / U | aligned | verdict |',
+            '|---|---|---|---|---|---|---|---|---|---|---|---|']
+    failing, cpu = [], 0.0
+    for f, key, grade, told, n in cells:
+        rs = runs[(f, key, grade, told)]
+        sc = scenario_of(key, grade, args.duration_scale)
+        ran = sorted({r['ran'] for r in rs})
+        c = cell_stats(rs, limit_of(sc, ran[0]), spec_limit(sc, ran[0]))
+        ok, text = verdict(c)
+        cpu += sum(r['wall'] for r in rs)
+        name = f if f != 'auto' else f'auto ({"/".join(ran)})'
+        inside = '-' if not np.isfinite(c.ended_inside) else f'{c.ended_inside:.0%}'
+        rows.append(f'| {name} | {key} | {grade} | {told} | {c.runs} | {inside} | {c.silent} '
+                    f'| {fmt3(c.rms)} | {fmt3(c.limit)} | {fmt3(c.sharpness, ratio)} '
+                    f'| {c.aligned:.0%} | {text} |')
+        if not ok:
+            why = f' ({"; ".join(c.silent_why)})' if c.silent_why else ''
+            failing.append(f'- {name}, {key}, {grade}, told {told}: {text}{why}')
+    lines = head(args, cmd.strip(), commit)
+    lines += rows
+    lines += ['', '## Failing cells', '']
+    lines += failing or ['- none.']
+    reduced = ', '.join(f'`{k}` {v} runs' for k, v in args.runs_for.items())
+    lines += ['', f'{len(cells)} cells, {args.runs} runs per cell'
+              + (f' (fewer where costly: {reduced})' if reduced else '')
+              + f'; wall time {wall / 60:.1f} min on {args.jobs} process(es), pipeline time '
+              f'{cpu / 60:.1f} min.']
+    write_markdown(args.out, lines)
+    print(f'wrote {args.out}: {len(failing)} failing cells of {len(cells)}', file=sys.stderr)
+    return 0
+
+
+def commit_of(root):
+    """Commit of ``root`` (short hash), with the package files changed since it."""
+    try:
+        rev = subprocess.run(['git', 'rev-parse', '--short', 'HEAD'], cwd=root, text=True,
+                             capture_output=True, check=True).stdout.strip()
+        dirty = subprocess.run(['git', 'status', '--porcelain', '--', 'sins_align_ros'],
+                               cwd=root, text=True, capture_output=True,
+                               check=True).stdout.split('\n')
+    except (OSError, subprocess.CalledProcessError):
+        return 'unknown'
+    dirty = [ln[3:] for ln in dirty if ln.strip()]
+    return rev + (f' with uncommitted changes in {", ".join(dirty)}' if dirty else '')
+
+
+if __name__ == '__main__':
+    sys.exit(main())
