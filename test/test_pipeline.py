@@ -197,6 +197,22 @@ def test_still_mems_10_and_12_state_tilt_sigma_never_below_the_accelerometer_bou
     assert np.all(np.abs(e[:, :2]) <= 3.0 * out.sigma[fine, :2])
 
 
+@pytest.mark.parametrize('name, drives', [('seed003_car', True), ('ship_sway', False)])
+def test_a_base_the_imu_shows_driving_without_gnss_is_told_it_needs_gnss(name, drives):
+    """Without GNSS, auto used to run the stationary filter on a driving car. The IMU
+    shows the drive (velocity change off a quadratic, or a turn); sway does not."""
+    sc, st, b = simulate(name, seconds=150.0)
+    p = AlignmentPipeline(alignment_params(sc, 'auto'))
+    p.start_clock(0.0)
+    out = p.process(b.imu.t, b.imu.dtheta, b.imu.dv)
+    told = [w for w in p.warnings if 'no GNSS' in w]
+    if drives:
+        assert set(out.phase) == {'coarse'} and told and p.n_restarts >= 1
+        assert 'cannot be aligned without GNSS' in told[0]
+    else:
+        assert not told and out.phase[-1] in ('fine', 'aligned')
+
+
 def test_invalid_parameters_are_refused():
     with pytest.raises(ValueError, match='fine_filter'):
         AlignmentPipeline({'fine_filter': 'magic'})

@@ -212,8 +212,8 @@ class AlignmentPipeline:
         dtheta = np.atleast_2d(np.asarray(dtheta, dtype=float))
         dv = np.atleast_2d(np.asarray(dv, dtype=float))
         outs, i, n = [], 0, len(t)
-        c = self.clock
         while i < n:
+            c = self.clock               # a restart (reset) replaces the clock
             if c.t_first is None:
                 if c.t_last is None:
                     c.t_last = t[i] - (t[i + 1] - t[i] if i + 1 < n else 0.01)
@@ -277,6 +277,10 @@ class AlignmentPipeline:
         if moving and not self.aided:
             self._diverged(motion.refusal(speed, self.cfg['fine_filter'], 'cannot align it '
                                           '(use fine_filter auto or a GNSS-aided filter)'))
+            return
+        drive = None if speed is not None else motion.imu_translation(window)
+        if drive is not None:
+            self._diverged(motion.NEEDS_GNSS.format(what=drive))
             return
         self._choose_position()          # a GNSS fix may have come in during coarse
         if self.cfg['sensor_self_check']:
