@@ -72,6 +72,8 @@ class ConsistencyMonitor:
         #: measurement row -> factor for its noise variance, set when a failed test is
         #: put down to the measurement noise (empty otherwise)
         self.r_factors = {}
+        #: what the last failed test did, for the reason the phase gives
+        self.remedy = ''
         self._u = {}
 
     def add(self, nis, dof, u=None, rows=None):
@@ -108,10 +110,12 @@ class ConsistencyMonitor:
         self._raw.clear()
         self.r_factors = self._noise_rows()
         if self.r_factors:
+            self.remedy = 'measurement noise inflated (white innovations)'
             self.n_r_inflations += 1
             for r in self.r_factors:
                 self._u[r].clear()
             return None
+        self.remedy = 'covariance and process noise inflated'
         self.n_inflations += 1
         return factor
 

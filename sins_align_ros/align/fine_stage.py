@@ -114,7 +114,7 @@ class FineStage:
         why = []
         if not self.consistency.consistent:
             why.append(f'innovations inconsistent (NIS/dof {self.consistency.ratio:.2f} > '
-                       f'{self.consistency.bound:.2f}): covariance inflated')
+                       f'{self.consistency.bound:.2f}): {self.consistency.remedy}')
         if not tilt:
             why.append(f'tilt 1-sigma above {math.degrees(self.max_tilt):g} deg')
         if not heading:
