@@ -52,6 +52,19 @@ def refusal(speed, fine_filter, what):
             f'{fine_filter} {what}')
 
 
+def cannot_start(fine_filter, aided, moving, speed, window):
+    """Return why no fine filter can start at the end of the coarse ``window``, or None.
+
+    A stationary filter on a base GNSS shows ``moving`` (at ``speed``); any filter on
+    a base the IMU shows driving when there is no GNSS (``speed`` None).
+    """
+    if moving and not aided:
+        return refusal(speed, fine_filter, 'cannot align it (use fine_filter auto or a '
+                       'GNSS-aided filter)')
+    drive = None if speed is not None else imu_translation(window)
+    return None if drive is None else NEEDS_GNSS.format(what=drive)
+
+
 def imu_translation(window):
     """Return what the coarse ``window`` (t, dtheta, dv, dt) shows of a drive, or None.
 

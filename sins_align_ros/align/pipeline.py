@@ -274,13 +274,9 @@ class AlignmentPipeline:
         moving, speed = motion.gnss_motion(self.gnss, self.cfg, window[0])
         self.cfg['fine_filter'] = motion.choose_filter(self.cfg, moving)
         self.aided = is_aided(self.cfg['fine_filter'])
-        if moving and not self.aided:
-            self._diverged(motion.refusal(speed, self.cfg['fine_filter'], 'cannot align it '
-                                          '(use fine_filter auto or a GNSS-aided filter)'))
-            return
-        drive = None if speed is not None else motion.imu_translation(window)
-        if drive is not None:
-            self._diverged(motion.NEEDS_GNSS.format(what=drive))
+        reason = motion.cannot_start(self.cfg['fine_filter'], self.aided, moving, speed, window)
+        if reason is not None:
+            self._diverged(reason)
             return
         self._choose_position()          # a GNSS fix may have come in during coarse
         if self.cfg['sensor_self_check']:
