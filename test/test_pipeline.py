@@ -8,7 +8,10 @@ from sins_align_ros.align.session import feed_arrays
 from sins_align_ros.align.limits import scenario_limits
 from sins_align_ros.nav.frames import (attitude_error, euler_error, euler_to_dcm, quat_to_dcm,
                                        rotvec_to_dcm)
-from sins_align_ros.sim.presets import SENSOR_GRADES, alignment_params, misalignment_rad, scenario
+from sins_align_ros.sim.gnss import GnssSpec
+from sins_align_ros.sim.presets import (SENSOR_GRADES, Scenario, alignment_params,
+                                        misalignment_rad, scenario)
+from sins_align_ros.sim.trajectory import Segment, Trajectory
 from sins_align_ros.sim.scenario import ScenarioStream
 from sins_align_ros.units import ARCMIN, DEG
 
@@ -211,6 +214,29 @@ def test_a_base_the_imu_shows_driving_without_gnss_is_told_it_needs_gnss(name, d
         assert 'cannot be aligned without GNSS' in told[0]
     else:
         assert not told and out.phase[-1] in ('fine', 'aligned')
+
+
+def test_a_robot_crawling_below_the_speed_threshold_gets_the_gnss_aided_filter():
+    """A robot at 0.3 m/s (below motion_speed_mps) turning in the coarse window: GNSS alone
+    calls it still, the IMU sees the turns, so auto runs the GNSS-aided filter instead of
+    a zero-velocity one, and the final attitude is inside 3 sigma."""
+    segs = [Segment(10.0), Segment(15.0, turn_rate=6.0), Segment(20.0),
+            Segment(15.0, turn_rate=-6.0), Segment(20.0), Segment(15.0, turn_rate=6.0),
+            Segment(60.0)]
+    sc = Scenario(name='robot', description='slow robot', duration=150.0,
+                  trajectory=Trajectory(34.0, 108.0, 10.0, heading_deg=30.0, speed=0.3,
+                                        segments=segs, name='robot'),
+                  imu=SENSOR_GRADES['tactical'],
+                  gnss=GnssSpec(rate_hz=1.0, pos_sigma_h=0.5, pos_sigma_v=1.0, vel_sigma=0.05))
+    st = ScenarioStream(sc, seed=4)
+    b = st.next_block(int(sc.duration * sc.imu_rate_hz))
+    p = AlignmentPipeline(alignment_params(sc, 'auto'))
+    p.start_clock(0.0)
+    out = feed_arrays(p, b.imu, b.gnss)
+    status = p.status()
+    assert status['fine_filter'] == 'kf' and p.n_restarts == 0
+    e = euler_error(out.euler[-1], b.imu.euler[-1])
+    assert np.all(np.abs(e) <= 3.0 * out.sigma[-1])
 
 
 def test_invalid_parameters_are_refused():

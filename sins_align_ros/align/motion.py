@@ -15,6 +15,7 @@ disturbance give centimetres per second and a few degrees (a constant velocity s
 invisible). Then no filter can align without GNSS, and the pipeline says so.
 """
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -52,17 +53,49 @@ def refusal(speed, fine_filter, what):
             f'{fine_filter} {what}')
 
 
-def cannot_start(fine_filter, aided, moving, speed, window):
-    """Return why no fine filter can start at the end of the coarse ``window``, or None.
+@dataclass
+class Motion:
+    """What the coarse window shows of motion.
 
-    A stationary filter on a base GNSS shows ``moving`` (at ``speed``); any filter on
-    a base the IMU shows driving when there is no GNSS (``speed`` None).
+    ``gnss``: GNSS shows the base moving; ``speed`` its largest horizontal speed (m/s,
+    None without GNSS); ``drive``: what the IMU shows of a drive (:func:`imu_translation`)
+    or None.
     """
-    if moving and not aided:
-        return refusal(speed, fine_filter, 'cannot align it (use fine_filter auto or a '
-                       'GNSS-aided filter)')
-    drive = None if speed is not None else imu_translation(window)
-    return None if drive is None else NEEDS_GNSS.format(what=drive)
+
+    gnss: bool
+    speed: float
+    drive: str
+
+    @property
+    def moving(self):
+        """Tell whether the base moves: GNSS says so, or GNSS is there and the IMU drives.
+
+        (A robot crawling below ``motion_speed_mps`` still accelerates and turns.)
+        """
+        return self.gnss or (self.speed is not None and self.drive is not None)
+
+
+def judge(gnss, cfg, window):
+    """Return the :class:`Motion` of the coarse ``window`` (t, dtheta, dv, dt)."""
+    moving, speed = gnss_motion(gnss, cfg, window[0])
+    return Motion(moving, speed, None if moving else imu_translation(window))
+
+
+def cannot_start(fine_filter, aided, m):
+    """Return why no fine filter can start after a coarse window of motion ``m``, or None.
+
+    A stationary filter on a moving base; any filter on a base the IMU shows driving
+    when there is no GNSS.
+    """
+    if m.moving and not aided:
+        if m.gnss:
+            return refusal(m.speed, fine_filter, 'cannot align it (use fine_filter auto or a '
+                           'GNSS-aided filter)')
+        return (f'the IMU shows the base moving (it {m.drive}): the stationary filter '
+                f'{fine_filter} cannot align it (use fine_filter auto or a GNSS-aided filter)')
+    if m.speed is None and m.drive is not None:
+        return NEEDS_GNSS.format(what=m.drive)
+    return None
 
 
 def imu_translation(window):
@@ -71,14 +104,16 @@ def imu_translation(window):
     ``'changes its velocity by X m/s'`` when the specific force integrated in the initial body
     frame departs from its best quadratic in time (gravity turning with the Earth and
     with a gyro bias, and a constant tilt, are quadratic) by more than
-    :data:`DRIVE_DV_MPS`; ``'turns by X deg'`` when the body turns by more than
-    :data:`DRIVE_TURN_RAD`; None otherwise.
+    :data:`DRIVE_DV_MPS`; ``'turns by X deg'`` when the body turns away from its
+    first attitude by more than :data:`DRIVE_TURN_RAD` at some time in the window;
+    None otherwise.
     """
     tt, dth, dvv, dts = window
     if len(tt) < 10:
         return None
     C = body_attitude_increments(dth)
-    turn = math.acos(max(-1.0, min(1.0, (np.trace(C[-1]) - 1.0) / 2.0)))
+    cos_turn = (np.trace(C, axis1=1, axis2=2) - 1.0) / 2.0
+    turn = float(np.max(np.arccos(np.clip(cos_turn, -1.0, 1.0))))
     C_prev = np.concatenate([np.eye(3)[None], C[:-1]])
     V = np.cumsum(np.einsum('kij,kj->ki', C_prev, dvv), axis=0)
     t = tt - tt[0]

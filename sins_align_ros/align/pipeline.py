@@ -271,10 +271,10 @@ class AlignmentPipeline:
     def _finish_coarse(self):
         window = self.window.arrays(self.clock.t_first)
         self.window = coarse_stage.CoarseWindow(self.cfg['coarse_duration'])
-        moving, speed = motion.gnss_motion(self.gnss, self.cfg, window[0])
-        self.cfg['fine_filter'] = motion.choose_filter(self.cfg, moving)
+        m = motion.judge(self.gnss, self.cfg, window)
+        self.cfg['fine_filter'] = motion.choose_filter(self.cfg, m.moving)
         self.aided = is_aided(self.cfg['fine_filter'])
-        reason = motion.cannot_start(self.cfg['fine_filter'], self.aided, moving, speed, window)
+        reason = motion.cannot_start(self.cfg['fine_filter'], self.aided, m)
         if reason is not None:
             self._diverged(reason)
             return
@@ -282,8 +282,8 @@ class AlignmentPipeline:
         if self.cfg['sensor_self_check']:
             # biases only where the base is known to be at rest: GNSS says so, or (a
             # stationary filter, chosen by the user or by auto) there is no GNSS
-            self._self_check(window, at_rest=not moving and (speed is not None
-                                                             or not self.aided))
+            self._self_check(window, at_rest=not m.moving and (m.speed is not None
+                                                               or not self.aided))
         if self.aided:
             res, info, reason = coarse_stage.moving_base(window, self.cfg, self.noise,
                                                          self.position, self.gnss,
