@@ -107,7 +107,7 @@ def test_ship_pipeline_coarse_plus_fine_reaches_arcminutes_against_truth(fine_fi
     assert abs(err[2]) < 3.0 * ARCMIN, err / ARCMIN
     assert np.all(np.abs(err) <= 3.0 * sig + 0.2 * ARCMIN), (err / ARCMIN, sig / ARCMIN)
     if fine_filter == 'asckf':
-        assert len(st['fading_factors']) == 10 and len(st['R_diag']) == 2
+        assert len(st['fading_factors']) == p.engine.n and len(st['R_diag']) == 2
         assert 0 <= st['fading_epochs'] <= st['filter_updates']
 
 
@@ -259,5 +259,118 @@ def test_gyro_bias_instability_lets_the_drift_states_follow_a_markov_bias():
     p = AlignmentPipeline(cfg)
     p.start_clock(0.0)
     feed_arrays(p, b.imu, b.gnss)
-    np.testing.assert_allclose(p.engine.Qc[7:], 2.0 * (50.0 * DPH) ** 2 / 300.0, rtol=1e-12)
+    np.testing.assert_allclose(p.engine.Qc[7:10], 2.0 * (50.0 * DPH) ** 2 / 300.0,
+                               rtol=1e-12)
     assert p.noise.gyro_bias == pytest.approx(np.hypot(200.0, 50.0) * DPH)
+
+
+def test_accel_bias_states_predict_the_mechanization_errors_in_a_turn():
+    """13-state model: a body-axis accelerometer bias turns with the vehicle in ENU.
+
+    60 s of a swaying ship turning at 1.5 deg/s with a 30 deg heading error, an
+    accelerometer bias alone: the 13-state model (``C~_b_n nab`` in the velocity error)
+    follows the full mechanization; seed 000's 10 states miss the bias's velocity error.
+    """
+    from sins_align_ros.nav import earth
+    from sins_align_ros.sim.imu import ImuSimulator, ImuSpec
+    from sins_align_ros.sim.presets import SEED000_SWAY
+    from sins_align_ros.sim.trajectory import Segment, Trajectory
+    traj = Trajectory(45.78, 126.67, 0.0, heading_deg=45.0, speed=8.0,
+                      segments=[Segment(60.0, turn_rate=1.5, ramp=5.0)], sway=SEED000_SWAY)
+    nab = np.array([100.0, -80.0, 60.0]) * UG
+    sim = ImuSimulator(traj, ImuSpec(accel_bias_ug=nab / UG), 100.0)
+    e0, v0, p0 = sim.initial_truth()
+    c = sim.next_chunk(6000)
+    phi0 = np.array([0.03, 0.03, 30.0]) * DEG
+    out = Strapdown(la.C_n_nprime(phi0) @ euler_to_dcm(e0), v0, *p0).run(c.dtheta, c.dv, 0.01)
+    x10, x13 = np.r_[0, 0, 0, 0, phi0, 0, 0, 0], np.r_[0, 0, 0, 0, phi0, 0, 0, 0, nab]
+    for k in range(9, 6000, 10):                       # 10 Hz model steps, truth at mid-step
+        km = traj.kinematics(c.t[k] - 0.05)
+        lat, h = c.pos[k, 0], c.pos[k, 2]
+        v = km.v_n[0]
+        f_n = (km.a_n[0] + np.cross(2 * earth.w_ie_n(lat) + earth.w_en_n(lat, h, v), v)
+               - earth.gravity_n(lat, h))
+        x10 = la.propagate(x10, f_n, v, lat, h, 0.1)
+        x13 = la.propagate(x13, f_n, v, lat, h, 0.1, C_b_n=out['C_b_n'][k - 5])
+    dv = out['v_n'][-1, :2] - c.v_n[-1, :2]
+    dp = earth.local_offset_m(*c.pos[-1], *out['pos'][-1])[:2]
+    phi = la.misalignment_of(out['C_b_n'][-1], euler_to_dcm(c.euler[-1]))
+    assert x13[0:2] == pytest.approx(dv, abs=2e-3)     # measured: 1e-4 m/s
+    assert x13[2:4] == pytest.approx(dp, abs=0.05)
+    assert x13[4:7] == pytest.approx(phi, abs=2e-5)
+    np.testing.assert_array_equal(x13[10:], nab)       # a random constant
+    assert np.abs(x10[0:2] - dv).max() > 0.02          # the bias's share: 0.03-0.06 m/s
+
+
+def _underway_run(seed, accel_bias):
+    """Seed 000 engine (ASCKF, GNSS position) on ship_underway, 600 s, 50 Hz IMU.
+
+    Starts from a coarse-like error (0.1, 0.1, 1 deg; sigma twice that); returns the
+    engine and, every second, the misalignment and its 1-sigma (rad, (600, 3) each).
+    """
+    from sins_align_ros.align.moving import model_noise
+    from sins_align_ros.models.stationary import NoiseSpec
+    sc = scenario('ship_underway')
+    b = ScenarioStream(sc, seed=seed, imu_rate_hz=50.0).next_block(int(sc.duration * 50))
+    noise = NoiseSpec(gyro_bias=0.003 * DPH, gyro_arw=0.0005 * DPSH, accel_bias=30.0 * UG,
+                      accel_vrw=5.0 * UG)                       # the marine grade, as set
+    phi0 = np.array([0.1, 0.1, 1.0]) * DEG
+    P0, Qc = model_noise(2.0 * phi0, 0.1, 0.5, noise, 0.0, accel_bias=accel_bias)
+    eng = MovingBaseAlignment(la.C_n_nprime(phi0) @ euler_to_dcm(b.imu.euler[0]),
+                              b.imu.v_n[0], *b.imu.pos[0], P0, Qc, np.eye(2) * 0.5 ** 2)
+    phi, sig = [], []
+    ends = np.r_[0, np.arange(25, len(b.imu.t), 50)]   # half-way between fixes
+    for k0, k1 in zip(ends[:-1], ends[1:]):
+        sl = slice(k0, k1 + 1)
+        eng.feed(SimpleNamespace(t=b.imu.t[sl], dtheta=b.imu.dtheta[sl], dv=b.imu.dv[sl]),
+                 b.gnss, b.imu.t[k0])
+        phi.append(la.misalignment_of(eng.mech.C_b_n, euler_to_dcm(b.imu.euler[k1])))
+        sig.append(np.sqrt(np.diag(eng.attitude_cov())))
+    return eng, np.array(phi[1:]), np.array(sig[1:])
+
+
+def test_turning_ship_asckf_with_accel_bias_states_stays_inside_its_sigma():
+    """Issue 21: the ship turns 90 deg and back (ship_underway); the ASCKF with the 13-state
+    model (accelerometer bias) ends inside 3 sigma with the heading within 2.5', every 1-s
+    sample inside 3 sigma, and a sigma that is not uselessly wide; it finds the bias.
+
+    Seed 000's 10 states on the same data take the bias, turning with the ship, for tilt
+    and heading: the north tilt leaves its sigma (bench/results/moving_base_integrity.md).
+    """
+    eng, phi, sig = _underway_run(1, accel_bias=True)
+    assert eng.has_accel_bias and eng.n == 13 and eng.sums.attitude
+    r = np.abs(phi) / sig
+    assert abs(phi[-1, 2]) < 2.5 * ARCMIN, phi[-1] / ARCMIN
+    assert np.all(r[-1] <= 3.0), (phi[-1] / ARCMIN, sig[-1] / ARCMIN)
+    assert np.all((r <= 3.0).mean(axis=0) >= 0.95) and r.max() < 5.0, r.max(axis=0)
+    assert sig[-1, 2] < 1.0 * ARCMIN                   # measured 0.48'
+    # the horizontal-axis biases are found (30 ug each, the marine grade's constant bias)
+    nab, s_nab = eng.kf.x[10:12], np.sqrt(np.diag(eng.kf.P)[10:12])
+    assert np.all(np.abs(nab - 30.0 * UG) <= 3.0 * s_nab) and np.all(s_nab < 5.0 * UG)
+    assert eng.status()['accel_bias_ug'][0] == pytest.approx(nab[0] / UG)
+
+    eng10, phi10, sig10 = _underway_run(1, accel_bias=False)
+    assert not eng10.has_accel_bias and eng10.n == 10
+    r10 = np.abs(phi10) / sig10
+    assert (r10[:, 1] <= 3.0).mean() < 0.9 and r10.max() > 5.0, r10.max(axis=0)
+
+
+@pytest.mark.xfail(strict=True, raises=AssertionError,
+                   reason='align/factory.py does not give the seed 000 engine its accelerometer '
+                          'bias yet (model_noise / accel_bias hook): remove this mark with it')
+def test_turning_ship_through_the_pipeline_asckf_stays_inside_its_sigma():
+    """Issue 21 must-show through the pipeline: ship_underway (90 deg turn and back, 600 s,
+    seed 1), ASCKF with the scenario's sensor parameters: the 13-state engine, final heading
+    within 2.5' and inside 3 sigma, every 1-s sample after coarse inside 3 sigma."""
+    from sins_align_ros.eval.run import run_scenario
+    from sins_align_ros.nav.frames import euler_error
+    run = run_scenario('ship_underway', 1, 'asckf', use_velocity=True)
+    assert run.pipeline.engine.has_accel_bias
+    out = run.out
+    k = np.arange(99, len(out.t), 100)
+    k = k[np.isin(out.phase[k], ('fine', 'aligned'))]
+    r = np.abs(euler_error(out.euler[k], run.truth_euler[k])) / out.sigma[k]
+    fe = run.final
+    assert abs(fe.euler[2]) < 2.5 * ARCMIN and np.all(np.abs(fe.euler) <= 3.0 * fe.sigma)
+    assert np.all((r <= 3.0).mean(axis=0) >= 0.95) and r.max() < 5.0, r.max(axis=0)
+    assert fe.sigma[2] < 1.0 * ARCMIN and out.phase[-1] == 'aligned'

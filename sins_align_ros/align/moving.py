@@ -1,13 +1,24 @@
 """Moving-base GNSS-aided fine alignment with a large heading error (seed 000).
 
 The full strapdown mechanization (transport rate, Coriolis, position) runs at
-IMU rate; at every GNSS epoch the 10-state large-azimuth error model
+IMU rate; at every GNSS epoch the large-azimuth error model
 (:mod:`~sins_align_ros.models.large_azimuth`, seed 000 eq. 1-6) is propagated
 over the interval by RK4 at the interval's mean specific force and velocity,
 updated with the GNSS position difference (and optionally velocity), and its
 misalignment, velocity and position estimates are fed back into the
 mechanization (closed loop). The gyro drift state stays in the filter; it is
 resolved in the computed frame, so a heading correction turns it too.
+
+Model size (where we differ from seed 000): with ``accel_bias`` given (the pipeline
+gives the configured ``accel_bias_ug``, :func:`model_noise`) the model has 13 states,
+seed 000's 10 plus the accelerometer bias in body axes (a random constant; a random
+walk of density ``accel_bias_q`` if one is given), which stays in the filter like the
+drift and enters the velocity error through the interval's mean computed attitude. Seed
+000's 10 states take a bias for a tilt of bias / g; when the ship turns the bias turns
+with it and the 10-state filter put the difference into the heading (ship_underway,
+bench/results/moving_base_integrity.md). Without
+``accel_bias`` the engine is seed 000's 10-state model, and the pipeline adds bias / g
+to its tilt variance instead (``has_accel_bias`` False).
 
 Filters (switchable one improvement at a time, seed 000 sec. 3):
 ``square_root=False`` is the conventional CKF (eq. 22-34); with
@@ -28,25 +39,50 @@ from ..filters.cubature import batched
 from ..models import large_azimuth as la
 from ..nav import earth
 from ..nav.frames import orthonormalize
+from ..units import DPH, UG
 from .aided import GnssAidedEngine, GnssFix
 from .gnss_gate import FilterDiverged, GnssGate  # noqa: F401  (FilterDiverged re-exported)
 
 I_V, I_P, I_PHI, I_EPS = slice(0, 2), slice(2, 4), slice(4, 7), slice(7, 10)
+#: accelerometer bias, body axes (13-state model only)
+I_NAB = slice(10, 13)
 #: default fading proportions (seed 000 eq. 8): velocity, position and misalignment fade,
 #: the gyro drift does not (fading a random constant with a 1e-16 variance made every
-#: run diverge in bench/moving_base.py: the factors compound over the V_k memory)
+#: run diverge in bench/moving_base.py: the factors compound over the V_k memory), nor
+#: the accelerometer bias of the 13-state model (zeros appended)
 ALPHA = np.r_[np.ones(7), np.zeros(3)]
+#: smallest accelerometer bias sigma of the 13-state model (as the navigation filters'), m/s^2
+ACCEL_BIAS_FLOOR = UG
 #: fading only while the innovations of the last 10 epochs are too large for their
 #: covariance (99%) and keep their sign (lag-1 correlation above 0.5, about 2.2 sigma
 #: for white 2-vectors): see ASCKF ``whiteness``
 WHITENESS = (10, 0.5)
 
 
+def model_noise(sigma, s_v, s_p, noise, q_drift, accel_bias_q=0.0, accel_bias=True):
+    """P0 and Qc of the seed 000 engine from the coarse result and the sensor model.
+
+    ``sigma`` (3,) coarse misalignment sigma (rad), ``s_v`` velocity sigma (m/s),
+    ``s_p`` GNSS position sigma (m), ``noise`` the
+    :class:`~sins_align_ros.models.stationary.NoiseSpec`, ``q_drift`` the drift's random
+    walk density (rad^2/s^3), ``accel_bias_q`` the accelerometer bias's
+    ((m/s^2)^2/s; 0: a random constant). ``accel_bias`` False: seed 000's 10 states.
+    Returns ``(P0, Qc)``, 13 (or 10) long.
+    """
+    drift0 = max(noise.gyro_bias, 1e-3 * DPH) ** 2
+    p0 = [s_v ** 2] * 2 + [s_p ** 2] * 2 + list(np.asarray(sigma) ** 2) + [drift0] * 3
+    qc = [noise.accel_vrw ** 2] * 2 + [0.0, 0.0] + [noise.gyro_arw ** 2] * 3 + [q_drift] * 3
+    if accel_bias:
+        p0 += [max(noise.accel_bias, ACCEL_BIAS_FLOOR) ** 2] * 3
+        qc += [accel_bias_q] * 3
+    return np.diag(p0), np.array(qc)
+
+
 class MovingBaseAlignment(GnssAidedEngine):
     """Mechanization + seed 000 filter; see the module docstring.
 
     ``i_phi``, ``i_v``, ``i_eps``: the misalignment, velocity-error and gyro-drift slices
-    of the state.
+    of the state; ``n`` its size (10, or 13 with the accelerometer bias).
 
     Parameters
     ----------
@@ -56,11 +92,16 @@ class MovingBaseAlignment(GnssAidedEngine):
         Initial ENU velocity, m/s.
     lat, lon, h : float
         Initial position (rad, rad, m).
-    P0 : ndarray (10, 10)
-        Initial covariance of the error state (see ``large_azimuth.LABELS``).
-    Qc : ndarray (10,)
+    P0 : ndarray (10, 10) or (13, 13)
+        Initial covariance of the error state (see ``large_azimuth.LABELS``); 13 states
+        are seed 000's 10 plus the accelerometer bias (module docstring).
+    Qc : ndarray (10,) or (13,)
         Continuous-time noise densities (per second); the discrete Q of an
         interval T is ``diag(Qc) T``. The adaptive filter starts from ``Qc * 1 s``.
+    accel_bias : float or None
+        Accelerometer bias 1-sigma (m/s^2) for a 10-state ``P0``/``Qc``: the
+        accelerometer bias states are appended (sigma at least :data:`ACCEL_BIAS_FLOOR`)
+        with random-walk density ``accel_bias_q`` ((m/s^2)^2/s).
     R : ndarray (m, m)
         Measurement noise: position east/north (m^2), then velocity east/north
         ((m/s)^2) when ``use_velocity``.
@@ -99,29 +140,44 @@ class MovingBaseAlignment(GnssAidedEngine):
     """
 
     i_phi, i_v, i_eps = I_PHI, I_V, I_EPS
-    #: the 10-state model has no accelerometer bias: bias / g is added to the tilt
+    #: seed 000's 10-state model has no accelerometer bias: bias / g is added to the
+    #: tilt; set per instance (True with 13 states)
     has_accel_bias = False
 
     def __init__(self, C_b_n, v_n, lat, lon, h, P0, Qc, R, use_velocity=False,
                  square_root=True, fading=True, adaptive=True, use_reported_cov=False,
                  alpha=ALPHA, rho=0.95, beta=3.0, b=0.97, gate=False, lambda_max=np.inf,
                  adapt_q=False, r_ceiling=1e4, fading_gate=None, whiteness=WHITENESS,
-                 cap_at_p0=True, gate_probability=None, gate_max_rejects=10):
+                 cap_at_p0=True, gate_probability=None, gate_max_rejects=10,
+                 accel_bias=None, accel_bias_q=0.0):
         Qc = np.asarray(Qc, dtype=float)
         R = np.asarray(R, dtype=float)
+        P0 = np.asarray(P0, dtype=float)
+        if accel_bias is not None and len(P0) == la.N_STATES:
+            P0 = np.pad(P0, (0, 3))
+            P0[I_NAB, I_NAB] = np.eye(3) * max(accel_bias, ACCEL_BIAS_FLOOR) ** 2
+            Qc = np.r_[Qc, [accel_bias_q] * 3]
+        self.n = len(P0)
+        if self.n not in (la.N_STATES, la.N_STATES_ACCEL) or len(Qc) != self.n:
+            raise ValueError(f'P0 ({self.n}) and Qc ({len(Qc)}) must have 10 or 13 states')
+        self.has_accel_bias = self.n == la.N_STATES_ACCEL
+        alpha = np.asarray(alpha, dtype=float)
+        if len(alpha) < self.n:
+            alpha = np.r_[alpha, np.zeros(self.n - len(alpha))]
         if square_root:
-            kf = ASCKF(np.zeros(la.N_STATES), P0, np.diag(Qc), R, fading=fading,
+            kf = ASCKF(np.zeros(self.n), P0, np.diag(Qc), R, fading=fading,
                        adaptive=adaptive, alpha=alpha, rho=rho, beta=beta, b=b, gate=gate,
                        lambda_max=lambda_max, adapt_q=adapt_q, r_ceiling=r_ceiling,
                        r_when_identifiable=True, fading_gate=fading_gate, whiteness=whiteness,
                        var_max=np.diag(P0).copy() if cap_at_p0 else None)
         else:
-            kf = CKF(np.zeros(la.N_STATES), P0, np.diag(Qc), R)
+            kf = CKF(np.zeros(self.n), P0, np.diag(Qc), R)
         super().__init__(C_b_n, v_n, lat, lon, h, kf, Qc, R,
                          rows=[2, 3, 0, 1] if use_velocity else [2, 3],
                          gate=GnssGate(gate_probability, gate_max_rejects, sizes=(2, 4)),
                          use_velocity=use_velocity, adaptive=square_root and adaptive,
-                         use_reported_cov=use_reported_cov)
+                         use_reported_cov=use_reported_cov,
+                         attitude_sums=self.has_accel_bias)
 
     def _transition(self):
         """Batched ``f(x)`` over the interval since the last filter epoch."""
@@ -132,8 +188,9 @@ class MovingBaseAlignment(GnssAidedEngine):
         f_n = s.dv_sum / T
         v_n = s.v_sum / T
         lat, h = self.mech.lat, self.mech.h
+        C = orthonormalize(s.C_sum / T) if self.has_accel_bias else None
         sub = max(1, int(math.ceil(T / 1.0)))
-        return batched(lambda X: la.propagate(X, f_n, v_n, lat, h, T, substeps=sub))
+        return batched(lambda X: la.propagate(X, f_n, v_n, lat, h, T, substeps=sub, C_b_n=C))
 
     def measurement(self, fix, t_now):
         """Innovation vector of a fix taken at ``fix.t`` <= ``t_now`` (the last IMU stamp).
@@ -172,12 +229,20 @@ class MovingBaseAlignment(GnssAidedEngine):
         if fix is not None:
             m.hold_vertical(fix.h, fix.v_n[2] if fix.v_n is not None else 0.0)
         # the corrected frame differs from the old computed one by C_n^n'^T: turn the
-        # drift (resolved in the computed frame) and the residual tilts with it
-        T = np.eye(la.N_STATES)
+        # drift (resolved in the computed frame) and the residual tilts with it; the
+        # accelerometer bias is in body axes and stays
+        T = np.eye(self.n)
         T[I_PHI, I_PHI] = C_n_np.T
         T[I_EPS, I_EPS] = C_n_np.T
         kf.transform(T)
         kf.x[:7] = 0.0
+
+    def status(self):
+        """Filter internals for diagnostics; with 13 states the accelerometer bias estimate."""
+        s = super().status()
+        if self.has_accel_bias:
+            s['accel_bias_ug'] = [float(v) for v in self.kf.x[I_NAB] / UG]
+        return s
 
     @staticmethod
     def _gnss_fix(gnss, i):

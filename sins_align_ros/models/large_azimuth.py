@@ -1,4 +1,4 @@
-"""10-state large-azimuth error model of seed 000 (eq. 1-6), in this package's conventions.
+"""Large-azimuth error model of seed 000 (eq. 1-6), 10 states, and our 13-state extension.
 
 State ``x = [dV_E, dV_N, dp_E, dp_N, phi_E, phi_N, phi_U, eps_E, eps_N, eps_U]``:
 horizontal velocity error (m/s), horizontal position error (m, east and north;
@@ -29,13 +29,29 @@ Dynamics (seed 000 eq. 3-4 in this convention, vertical channel ignored):
 
 Measurement: GNSS position difference ``z = [dp_E, dp_N]`` (linear, eq. 6), and
 optionally GNSS velocity ``[dV_E, dV_N]``.
+
+13 states (not in seed 000): ``x[10:13] = nab``, the accelerometer bias in body axes
+(FLU, m/s^2, measured minus true specific force), a random constant. It enters the
+velocity error through the computed attitude: the computed specific force is
+``C~_b_n (f_b + nab) = C_n^n' f_n + C~_b_n nab``, so
+
+    dV'  += C~_b_n nab          (east, north rows)
+    nab' = 0
+
+Seed 000's 10-state model has no accelerometer bias: on a still or straight-running
+base a bias is indistinguishable from a tilt of bias / g, but once the vehicle turns
+the bias turns with it in the navigation frame while a tilt does not, and the 10-state
+filter takes the difference for heading (bench/results/moving_base_integrity.md).
 """
 import numpy as np
 
 from ..nav import earth
 
 N_STATES = 10
-LABELS = ('dVE', 'dVN', 'dpE', 'dpN', 'phiE', 'phiN', 'phiU', 'epsE', 'epsN', 'epsU')
+#: states with the accelerometer bias (module docstring)
+N_STATES_ACCEL = 13
+LABELS = ('dVE', 'dVN', 'dpE', 'dpN', 'phiE', 'phiN', 'phiU', 'epsE', 'epsN', 'epsU',
+          'nabX', 'nabY', 'nabZ')
 
 
 def C_n_nprime(phi):
@@ -47,12 +63,14 @@ def C_n_nprime(phi):
                      [pn * c + pe * s, pn * s - pe * c, 1.0]])
 
 
-def derivative(x, f_n, v_n, lat, h):
+def derivative(x, f_n, v_n, lat, h, C_b_n=None):
     """Continuous-time ``x'`` at specific force ``f_n`` and velocity ``v_n`` (ENU, (3,)).
 
-    ``x`` is one state (10,) or a batch of states as columns (10, N), e.g. all
-    cubature points at once; the result has the same shape. ``lat`` (rad), ``h``
-    (m) are the navigation position; noise terms are not included.
+    ``x`` is one state (10,) or (13,), or a batch of states as columns (10 or 13, N),
+    e.g. all cubature points at once; the result has the same shape. ``lat`` (rad),
+    ``h`` (m) are the navigation position; ``C_b_n`` (3, 3) the computed attitude
+    (13 states only: it turns the body-axis accelerometer bias into ENU); noise terms
+    are not included.
     """
     x = np.asarray(x, dtype=float)
     dvE, dvN, dpN = x[0], x[1], x[3]
@@ -86,27 +104,33 @@ def derivative(x, f_n, v_n, lat, h):
     out[5] = -(-s * wE + cm1 * wN + pe * wU) - dwie * sl + dvE / Rn - x[8]
     out[6] = (-((pn * c + pe * s) * wE + (pn * s - pe * c) * wN) + dwie * cl
               + dvE * np.tan(lat) / Rn + v_n[0] * dlat / (Rn * cl ** 2) - x[9])
+    if len(x) == N_STATES_ACCEL:                   # + C~_b_n nab; the bias is constant
+        C = np.asarray(C_b_n, dtype=float)
+        out[0] += C[0, 0] * x[10] + C[0, 1] * x[11] + C[0, 2] * x[12]
+        out[1] += C[1, 0] * x[10] + C[1, 1] * x[11] + C[1, 2] * x[12]
     return out
 
 
-def propagate(x, f_n, v_n, lat, h, dt, substeps=1):
+def propagate(x, f_n, v_n, lat, h, dt, substeps=1, C_b_n=None):
     """Discrete transition ``f(x)`` over ``dt`` by classical Runge-Kutta (seed 000 eq. 6).
 
-    ``x`` (10,) or a batch (10, N) of column states.
+    ``x`` (10,) or (13,), or a batch (10 or 13, N) of column states; ``C_b_n`` the
+    computed attitude over ``dt`` (13 states, :func:`derivative`).
     """
     step = dt / substeps
+    args = (f_n, v_n, lat, h, C_b_n)
     for _ in range(substeps):
-        k1 = derivative(x, f_n, v_n, lat, h)
-        k2 = derivative(x + 0.5 * step * k1, f_n, v_n, lat, h)
-        k3 = derivative(x + 0.5 * step * k2, f_n, v_n, lat, h)
-        k4 = derivative(x + step * k3, f_n, v_n, lat, h)
+        k1 = derivative(x, *args)
+        k2 = derivative(x + 0.5 * step * k1, *args)
+        k3 = derivative(x + 0.5 * step * k2, *args)
+        k4 = derivative(x + step * k3, *args)
         x = x + step / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
     return x
 
 
-def H_position():
-    """Measurement matrix of the GNSS position difference (2, 10)."""
-    H = np.zeros((2, N_STATES))
+def H_position(n_states=N_STATES):
+    """Measurement matrix of the GNSS position difference (2, ``n_states``)."""
+    H = np.zeros((2, n_states))
     H[0, 2] = H[1, 3] = 1.0
     return H
 
