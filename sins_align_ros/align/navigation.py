@@ -13,6 +13,40 @@ Markov parts of the compensation decay with their correlation time, as the expec
 value of a first-order Markov process does, so the residual error keeps the model's
 dynamics.
 
+Large heading errors with a poor gyro (issue 21; not in the seeds, whose model assumes a
+small misalignment and a tactical IMU). On seed 001's flight with a MEMS IMU (200 deg/h
+gyro bias) the 15-state filters published 8-15 deg of heading sigma over a heading
+54 deg off. Two causes, two remedies:
+
+* Spurious heading information. The heading error enters the velocity error only
+  through the horizontal specific force (``f_n x phi``). On a straight, unaccelerated
+  leg the true horizontal force is zero and the computed one is the filter's own tilt
+  error times g plus the residual accelerometer bias: its product with the heading
+  error is a product of two errors, which a first-order filter must not read as a
+  measurement of the heading. Taking it as one made the heading sigma stop growing at
+  about 12 deg while the error ran off with the gyro bias (the inconsistency that
+  observability-constrained EKFs address, Huang, Mourikis & Roumeliotis 2008). So the
+  error model uses the horizontal force only when it is beyond
+  :data:`FORCE_SIGNIFICANCE` sigma of what the filter's tilt and accelerometer
+  variances put on it (:meth:`IntegratedNavigation._model_force`); otherwise the heading
+  sigma grows with the gyro drift, as it should.
+* A heading error beyond the small-angle range. The linear filters (``kf``, ``vbakf``,
+  ``mvbakf``) hold the heading variance at :data:`HEADING_LINEAR_MAX_DEG` (1-sigma;
+  sin and 1 - cos of a 3-sigma error stay within 10 % / 0.3 rad of the linear model)
+  by scaling its row and column (P stays positive semi-definite); beyond that a
+  linear update at the next turn would read a 100-deg error as a small one and corrupt
+  tilt and gyro bias with it (the KF's tilt went 60 deg off). When the variance had to
+  be held, the heading is lost to the linear model: at the next GNSS epoch with a
+  velocity of at least ``track_min_speed_mps`` it is taken afresh from the GNSS track,
+  as the coarse stage does (the vehicle's nose along its velocity; 1-sigma
+  ``track_heading_sigma_deg``), a nonlinear re-acquisition that keeps position,
+  velocity, tilt and sensor estimates. The UKF (``ukf``, seed 003) keeps the heading
+  error nonlinear in its model instead (seed 004 eq. 3) and keeps its own force.
+* The claim. The heading goes out with the filter's variance only while its 1-sigma is
+  at most :data:`HEADING_CLAIM_MAX_DEG`, where the linearisation holds; above it the
+  heading is published as unknown (variance pi^2/3, the fine stage's unknown angle),
+  so a heading the model cannot represent is never claimed (:meth:`attitude_cov`).
+
 The IMU-rate driver and the GNSS bookkeeping (intervals without a fix, the innovation
 gate with forced acceptances) are :class:`~.aided.GnssAidedEngine`'s. The
 navigation solution is the mechanization's at every IMU sample (100 Hz at a 100 Hz
@@ -30,11 +64,20 @@ from ..filters.vbakf import VBAKF
 from ..models import large_misalignment as lm
 from ..models import loosely_coupled as lc
 from ..nav import earth
-from ..nav.frames import orthonormalize, rotvec_to_dcm
+from ..nav.frames import dcm_to_euler, euler_to_dcm, orthonormalize, rotvec_to_dcm
 from ..units import DPH, UG
-from .aided import GnssAidedEngine
+from .aided import ANGLE_UNKNOWN_VAR, GnssAidedEngine
 from .gnss_gate import GnssGate
 from .params import NAV_FILTERS
+
+#: the horizontal specific force enters the error model only beyond this many sigma
+FORCE_SIGNIFICANCE = 3.0
+#: heading 1-sigma (deg) up to which the linear filters' small-angle model holds
+HEADING_LINEAR_MAX_DEG = 15.0
+#: heading 1-sigma (deg) above which the heading is published as unknown
+HEADING_CLAIM_MAX_DEG = 10.0
+HEADING_LINEAR_MAX_VAR = math.radians(HEADING_LINEAR_MAX_DEG) ** 2
+HEADING_CLAIM_MAX_VAR = math.radians(HEADING_CLAIM_MAX_DEG) ** 2
 
 
 def gyro_tau(n_states, gyro, tau_g):
@@ -107,6 +150,10 @@ class IntegratedNavigation(GnssAidedEngine):
         Measure GNSS velocity when the epoch has one.
     gate_probability, gate_max_rejects
         The GNSS innovation gate (None: off), :class:`~.gnss_gate.GnssGate`.
+    track_heading_sigma_deg, track_min_speed_mps
+        The GNSS-track heading that replaces a heading lost to the linear model (module
+        docstring): its 1-sigma and the least horizontal speed (the parameters of the
+        same names; their defaults).
     """
 
     i_phi, i_v = lc.I_PHI, lc.I_V
@@ -114,7 +161,8 @@ class IntegratedNavigation(GnssAidedEngine):
 
     def __init__(self, C_b_n, v_n, lat, lon, h, P0, Qc, R, method='mvbakf', tau_g=300.0,
                  tau_a=3600.0, rho=0.95, n_iter=5, tau=6.0, moment='mean', use_velocity=True,
-                 gate_probability=None, gate_max_rejects=10):
+                 gate_probability=None, gate_max_rejects=10, track_heading_sigma_deg=10.0,
+                 track_min_speed_mps=2.0):
         if method not in NAV_FILTERS:
             raise ValueError(f'unknown navigation filter {method!r}')
         self.method = method
@@ -131,6 +179,13 @@ class IntegratedNavigation(GnssAidedEngine):
             kf = UKF(x0, P0, Q, R)
         self.tau_g, self.tau_a = float(tau_g), float(tau_a)
         self.i_eps = lc.I_EPS15 if self.n == 15 else lc.I_EPSB
+        self.i_nab = lc.I_NAB15 if self.n == 15 else lc.I_NAB18
+        #: epochs at which the heading variance was held at the linear model's range, and
+        #: times the heading was then taken from the GNSS track
+        self.n_heading_held = self.n_heading_reacquired = 0
+        self.heading_lost = False
+        self.track_heading_sigma = math.radians(float(track_heading_sigma_deg))
+        self.track_min_speed = float(track_min_speed_mps)
         #: sensor compensation: gyro constant, gyro Markov, accelerometer (body, SI)
         self.eps_const = np.zeros(3)
         self.eps_markov = np.zeros(3)
@@ -146,7 +201,8 @@ class IntegratedNavigation(GnssAidedEngine):
         return dtheta - (self.eps_const + self.eps_markov) * dt, dv - self.nab * dt
 
     def _interval_ended(self, T):
-        """Decay the Markov compensation over the interval that ended."""
+        """Decay the Markov compensation over the interval that ended; bound the heading."""
+        self._interval_ended_bound()
         if T > 0.0:
             self.eps_markov *= math.exp(-T / self.tau_g)
             self.nab *= math.exp(-T / self.tau_a)
@@ -160,12 +216,70 @@ class IntegratedNavigation(GnssAidedEngine):
         f_n, v_n, C = s.dv_sum / T, s.v_sum / T, s.C_sum / T
         C = orthonormalize(C)
         m = self.mech
+        if self.method != 'ukf':
+            f_n = self._model_force(f_n, m.lat, m.h)
         self._F = lc.F_matrix(C, f_n, v_n, m.lat, m.h, self.tau_g, self.tau_a, self.n)
         if self.method == 'ukf':
             sub = max(1, int(math.ceil(T / 1.0)))
             args = (f_n, v_n, C, m.lat, m.h, self.tau_g, self.tau_a, T)
             return batched(lambda X: lc.propagate18(X, *args, substeps=sub))
         return linear(lc.transition(self._F, T))
+
+    def _model_force(self, f_n, lat, h):
+        """Return the specific force (3,) the error model uses: ``f_n`` or its vertical part.
+
+        The horizontal part is dropped when it is within :data:`FORCE_SIGNIFICANCE`
+        sigma of zero, the sigma being what the filter's own tilt and accelerometer
+        variances put on the computed force (module docstring: no information from a
+        product of two errors).
+        """
+        P = self.kf.P
+        g = earth.gravity(lat, h)
+        d = np.diag(P)
+        s2 = g * g * max(d[0], d[1]) + float(np.max(d[self.i_nab]))
+        if f_n[0] ** 2 + f_n[1] ** 2 < FORCE_SIGNIFICANCE ** 2 * s2:
+            return np.array([0.0, 0.0, f_n[2]])
+        return f_n
+
+    def _interval_ended_bound(self):
+        """Hold a linear filter's heading variance within the model's range (module docstring)."""
+        if self.method == 'ukf':
+            return
+        P = self.kf.P
+        if P[2, 2] > HEADING_LINEAR_MAX_VAR:
+            s = np.ones(self.n)
+            s[2] = math.sqrt(HEADING_LINEAR_MAX_VAR / P[2, 2])
+            self.kf.P = P * np.outer(s, s)
+            self.n_heading_held += 1
+            self.heading_lost = True
+
+    def _reacquire_heading(self, fix):
+        """Take the heading from the GNSS track of ``fix`` when it was lost (module docstring)."""
+        if not self.heading_lost or fix is None or fix.v_n is None:
+            return
+        v = np.asarray(fix.v_n, dtype=float)
+        if math.hypot(v[0], v[1]) < self.track_min_speed:
+            return
+        m = self.mech
+        eul = dcm_to_euler(m.C_b_n)
+        eul[2] = math.atan2(v[1], v[0])
+        m.C_b_n = euler_to_dcm(eul)
+        P = self.kf.P.copy()
+        P[2, :] = P[:, 2] = 0.0
+        P[2, 2] = self.track_heading_sigma ** 2
+        self.kf.P = P
+        self.heading_lost = False
+        self.n_heading_reacquired += 1
+
+    def inflate(self, factor):
+        """Inflate as every aided engine does, then hold the heading in the linear range."""
+        super().inflate(factor)
+        self._interval_ended_bound()
+
+    def widen(self, var_phi, var_v):
+        """Widen as every aided engine does, then hold the heading in the linear range."""
+        super().widen(var_phi, var_v)
+        self._interval_ended_bound()
 
     def _set_process_noise(self):
         """Q of the interval: trapezoid of ``Phi Qc Phi^T`` and ``Qc`` over its length T."""
@@ -216,6 +330,7 @@ class IntegratedNavigation(GnssAidedEngine):
             self.eps_markov += x[lc.I_EPSR]
             self.nab += x[lc.I_NAB18]
         kf.x = np.zeros(self.n)
+        self._reacquire_heading(fix)
 
     # -- output -------------------------------------------------------------------------
     def nav_cov(self):
@@ -226,6 +341,25 @@ class IntegratedNavigation(GnssAidedEngine):
         """
         i = np.r_[6:9, 3:6, 0:3]
         return self.kf.P[np.ix_(i, i)]
+
+    def attitude_cov(self):
+        """Misalignment covariance about ENU (3, 3), rad^2; the heading unknown beyond the claim.
+
+        While the filter's heading 1-sigma is above :data:`HEADING_CLAIM_MAX_DEG` the
+        heading is published as an angle anywhere in the circle (variance pi^2/3, no
+        cross terms; module docstring).
+        """
+        P = self.kf.P[self.i_phi, self.i_phi]
+        if P[2, 2] > HEADING_CLAIM_MAX_VAR:
+            P = P.copy()
+            P[2, :2] = P[:2, 2] = 0.0
+            P[2, 2] = ANGLE_UNKNOWN_VAR
+        return P
+
+    @property
+    def heading_claimed(self):
+        """Tell whether the heading is published with the filter's variance (not unknown)."""
+        return bool(self.kf.P[2, 2] <= HEADING_CLAIM_MAX_VAR)
 
     @property
     def gyro_bias(self):
@@ -238,6 +372,9 @@ class IntegratedNavigation(GnssAidedEngine):
         s['gyro_drift_dph'] = [float(v) for v in self.gyro_bias / DPH]
         s['accel_bias_ug'] = [float(v) for v in self.nab / UG]
         s['R_sigma'] = [float(v) for v in np.sqrt(np.diag(self.kf.R))]
+        s['heading_claimed'] = self.heading_claimed
+        s['heading_held_epochs'] = self.n_heading_held
+        s['heading_from_track'] = self.n_heading_reacquired
         if isinstance(self.kf, MVBAKF):
             s['P_pred_trace_ratio'] = self.kf.p_ratio
         return s

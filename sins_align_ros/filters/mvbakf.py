@@ -6,10 +6,17 @@ tuning factor ``tau``) and for the full ``R`` (eq. 11-13, forgetting factor ``rh
 ``N`` fixed-point iterations of eq. 20-34; the results eq. 35-39. Its baseline is
 :class:`~sins_align_ros.filters.vbakf.VBAKF`. A rejected epoch still teaches R
 (:mod:`~sins_align_ros.filters.linear_kf`).
+
+The R estimate never exceeds ``r_max_scale`` times the nominal R on its diagonal
+(:data:`~sins_align_ros.filters.vbakf.R_MAX_SCALE` by default; not in the seed): the
+rows and columns of ``U`` over the ceiling are scaled down, which keeps it positive
+definite and its correlations. Why a ceiling: :mod:`~sins_align_ros.filters.vbakf`.
 """
 import numpy as np
 
 from .linear_kf import KF, rejected_noise
+from .variational import cap_variances
+from .vbakf import R_MAX_SCALE
 
 
 class MVBAKF(KF):
@@ -36,6 +43,9 @@ class MVBAKF(KF):
         and ``E[R^-1]^-1 = U / u``, what the variational derivation (eq. 15-19) asks
         for (Huang et al. 2017, seed 001 ref. 13); the seed's eq. 7 gives
         ``(lambda - d - 1) Psi^-1`` for ``E[B^-1]``, which is the inverse of the mean.
+    r_max_scale : float or None
+        Ceiling of the R estimate's diagonal over the nominal one (module docstring;
+        None: no ceiling, the seed).
 
     Measurement subsets (``idx`` of fewer than M rows): the sub-block of ``U`` is
     updated; the other entries are rescaled so their R estimate is kept (an
@@ -44,8 +54,12 @@ class MVBAKF(KF):
     Interface: :class:`~sins_align_ros.filters.base.GaussianFilter`.
     """
 
-    def __init__(self, x0, P0, Q, R, tau=6.0, rho=0.95, n_iter=5, u0=None, moment='mean'):
+    def __init__(self, x0, P0, Q, R, tau=6.0, rho=0.95, n_iter=5, u0=None, moment='mean',
+                 r_max_scale=R_MAX_SCALE):
         super().__init__(x0, P0, Q, R)
+        self.r_max = None if r_max_scale is None else float(r_max_scale) * np.diag(self.R)
+        #: epochs at which the ceiling held the R estimate
+        self.n_r_capped = 0
         if moment not in ('mean', 'inverse'):
             raise ValueError(f'moment must be mean or inverse, not {moment!r}')
         self.moment = moment
@@ -78,7 +92,13 @@ class MVBAKF(KF):
         u_new = u_p + 1.0
         U_new = U_p * ((u_new - M - 1.0) / d_sub)
         U_new[np.ix_(idx, idx)] = U_sub + B
-        self.u, self.U = u_new, 0.5 * (U_new + U_new.T)
+        U_new = 0.5 * (U_new + U_new.T)
+        if self.r_max is not None:
+            lim = self.r_max * (u_new - M - 1.0)
+            if np.any(np.diag(U_new) > lim):
+                self.n_r_capped += 1
+                U_new = cap_variances(U_new, lim)
+        self.u, self.U = u_new, U_new
         self.R = self.U / (self.u - M - 1.0)                             # eq. 38
 
     def _learn_rejected(self, y, S, HPH, idx):
