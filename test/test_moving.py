@@ -355,9 +355,6 @@ def test_turning_ship_asckf_with_accel_bias_states_stays_inside_its_sigma():
     assert (r10[:, 1] <= 3.0).mean() < 0.9 and r10.max() > 5.0, r10.max(axis=0)
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason='align/factory.py does not give the seed 000 engine its accelerometer '
-                          'bias yet (model_noise / accel_bias hook): remove this mark with it')
 def test_turning_ship_through_the_pipeline_asckf_stays_inside_its_sigma():
     """Issue 21 must-show through the pipeline: ship_underway (90 deg turn and back, 600 s,
     seed 1), ASCKF with the scenario's sensor parameters: the 13-state engine, final heading

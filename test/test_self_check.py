@@ -160,3 +160,21 @@ def test_gnss_noise_above_the_model_widens_it(ff, reported, widened):
         assert any('gnss_pos_sigma_m widened' in f for f in c.findings)
     assert c.widened.get('use_reported_gnss_covariance', True) == (reported != 1.0)
     assert 'gnss_height_sigma_m' not in c.widened          # 0.5 m against 2 m configured
+
+
+@pytest.mark.parametrize('ff, widened', [('stationary12', True), ('reduced7', False)])
+def test_heave_at_rest_widens_the_vertical_zero_velocity_noise(ff, widened):
+    """A moored ship heaving 0.5 m over 6 s moves at 0.37 m/s RMS vertically: the 12-state
+    filter, which measures the vertical velocity as zero, gets that noise; the horizontal
+    filters keep theirs (the ship does not move horizontally)."""
+    from sins_align_ros.eval.scenarios import named, simulate
+    b = simulate(named('ship_sway', 60.0), 1)
+    dts = np.diff(np.r_[0.0, b.imu.t])
+    lat = 45.7796 * DEG
+    c = check((b.imu.t, b.imu.dtheta, b.imu.dv, dts), np.array([lat, 2.2, 0.0]),
+              {**DEFAULTS, 'fine_filter': ff, 'gyro_arw_dpsh': 0.0005,
+               'accel_vrw_ug_rthz': 5.0})
+    assert c.figures['base_velocity_v_mps'] == pytest.approx(0.5 * 2 * np.pi / 6 / np.sqrt(2),
+                                                             rel=0.1)
+    assert c.figures['base_velocity_h_mps'] < 0.02
+    assert ('zero_velocity_sigma' in c.widened) == widened

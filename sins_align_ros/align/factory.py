@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from . import params as prm
-from .moving import MovingBaseAlignment
+from .moving import MovingBaseAlignment, model_noise as moving_model_noise
 from .navigation import IntegratedNavigation, gyro_tau, model_noise as nav_model_noise
 from .robust import RobustAlignment, model_noise as robust_model_noise
 from .stationary import StationaryEngine
@@ -79,10 +79,9 @@ def make_engine(cfg, noise, start, has_velocity):
         eng = _navigation(cfg, noise, C, v_n, lat, lon, h, sigma, s_v, gate)
     else:
         s_p = cfg['gnss_pos_sigma_m']
-        drift0 = max(noise.gyro_bias, 1e-3 * DPH) ** 2
-        P0 = np.diag(np.r_[[s_v ** 2] * 2, [s_p ** 2] * 2, sigma ** 2, [drift0] * 3])
-        Qc = np.r_[[noise.accel_vrw ** 2] * 2, 0.0, 0.0, [noise.gyro_arw ** 2] * 3,
-                   [q_drift] * 3]
+        # seed 000's 10 states + the accelerometer bias (a random constant: no parameter
+        # gives an accelerometer bias instability)
+        P0, Qc = moving_model_noise(sigma, s_v, s_p, noise, q_drift)
         use_vel = bool(cfg['use_gnss_velocity'] and has_velocity)
         R = [s_p ** 2] * 2 + ([cfg['gnss_vel_sigma_mps'] ** 2] * 2 if use_vel else [])
         asckf = ff == 'asckf'

@@ -12,7 +12,8 @@ the finding is reported:
   base motion and sway (low frequencies) inflate the first, quantization and vibration
   (high frequencies) the second. Only where the two agree (within :data:`WHITE_AGREE`)
   is the noise evidently white; then their geometric mean widens the configured
-  density when it is more than :data:`NOISE_RATIO` times larger.
+  density when it is more than :data:`NOISE_RATIO` times larger. Where they disagree
+  (sway at the quay inflates the 1-s scatter), the third differences below bound it.
 * **White noise on a moving base**: the 1-s scatter is the motion's, but motion is
   smooth at the sample level, so the third differences of the samples (whose variance
   is 20 sigma^2 for white noise; a smooth motion's third difference falls as (w dt)^3)
@@ -41,6 +42,13 @@ the finding is reported:
   :data:`NOISE_RATIO` times the configured (or the receiver's reported) sigma, the
   sigma is widened to it (and reported covariances, then shown to be too small, are
   no longer used). On a still base and on a moving one alike.
+* **Base velocity at rest** (the zero-velocity measurement): the specific force
+  integrated in the initial body frame, levelled, less its best quadratic over each
+  :data:`VELOCITY_CHUNK_S` seconds, is the velocity the base really has (sway, heave,
+  people walking on it) plus a little sensor random walk; its RMS widens
+  ``zero_velocity_sigma`` when more than :data:`NOISE_RATIO` times larger
+  (horizontal, and vertical too for ``stationary12``, which measures the vertical
+  velocity: a moored ship's 0.5 m heave moves it at 0.5 m/s).
 * **Heading observability**: a gyro whose bias sigma (after widening) is not small
   against the horizontal Earth rate cannot find north at rest; the result says so
   and the stationary filters publish the heading as unknown.
@@ -54,7 +62,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..nav import earth
-from ..nav.coarse import detect_motion
+from ..nav.coarse import body_attitude_increments, detect_motion
 from ..units import DPH, DPSH, UG
 from .factory import uses_reported_covariance
 
@@ -72,6 +80,8 @@ ACCEL_BIAS_PER_VRW = 14.0
 #: on a moving base, accelerometer bias floor (ug) by gyro white noise (deg/sqrt(h), upper
 #: edge): navigation, tactical, industrial and consumer MEMS classes
 ACCEL_BIAS_BY_GYRO_NOISE = ((0.003, 100.0), (0.15, 500.0), (0.6, 2000.0), (math.inf, 5000.0))
+#: seconds of the pieces :func:`base_velocity_rms` fits a quadratic to
+VELOCITY_CHUNK_S = 10.0
 #: order of the differences of :func:`difference_density`
 DIFF_ORDER = 3
 #: a gyro bias sigma above this fraction of the horizontal Earth rate: no heading at rest
@@ -118,6 +128,30 @@ def white_density(x, dt):
     if not allan / WHITE_AGREE <= sample <= allan * WHITE_AGREE:
         return float('nan')
     return math.sqrt(allan * sample)
+
+
+def base_velocity_rms(dth, dvv, dts):
+    """RMS (m/s) of the base's horizontal and vertical velocity over a window at rest.
+
+    See the module docstring; ``(nan, nan)`` with less than one piece of data.
+    """
+    m = int(round(VELOCITY_CHUNK_S / float(np.mean(dts))))
+    k = len(dth) // m
+    if k < 1:
+        return float('nan'), float('nan')
+    C = body_attitude_increments(dth)
+    C_prev = np.concatenate([np.eye(3)[None], C[:-1]])
+    V = np.cumsum(np.einsum('kij,kj->ki', C_prev, dvv), axis=0)[:k * m].reshape(k, m, 3)
+    up = dvv.sum(axis=0)
+    up /= np.linalg.norm(up)
+    t = np.cumsum(dts[:m]) - dts[0]
+    A = np.column_stack([np.ones(m), t, t * t])
+    Pa = A @ np.linalg.pinv(A)
+    res = V - np.einsum('ij,kjl->kil', Pa, V)
+    vert = res @ up
+    horiz = res - vert[..., None] * up
+    return (math.sqrt(float(np.mean(np.sum(horiz * horiz, axis=-1))) / 2.0),
+            math.sqrt(float(np.mean(vert * vert))))
 
 
 def difference_density(x, dt, order=DIFF_ORDER):
@@ -218,8 +252,13 @@ def check(window, position, cfg, at_rest=True, gnss=None):
         out.note = ('bias bounds skipped: GNSS shows the base moving, or a moving-base filter '
                     'runs without GNSS (white noise from third differences of the samples)')
         return _heading(out, cfg, lat)
-    arw, vrw = _noise(out, cfg, white_density(w, dt), white_density(f, dt), moving=False)
+    # where sway makes the 1-s scatter disagree with the sample-level one, the third
+    # differences still bound the white noise (a swaying ship at the quay)
+    arw, vrw = (d if math.isfinite(d) else difference_density(x, dt)
+                for d, x in ((white_density(w, dt), w), (white_density(f, dt), f)))
+    arw, vrw = _noise(out, cfg, arw, vrw, moving=False)
     out.still = not detect_motion(dth, dvv, dts, arw, vrw)[0]
+    _base_velocity(out, cfg, dth, dvv, dts)
     if out.still:
         _biases(out, dth.sum(axis=0) / T, dvv.sum(axis=0) / T, T, lat, h, cfg, arw, vrw)
     else:
@@ -254,6 +293,18 @@ def _noise(out, cfg, arw, vrw, moving):
         if not moving:
             _raise(out, cfg, 'accel_bias_ug', ACCEL_BIAS_PER_VRW * vrw / UG, 'ug')
     return arw_cfg, vrw_cfg
+
+
+def _base_velocity(out, cfg, dth, dvv, dts):
+    """Widen ``zero_velocity_sigma`` to the velocity the base shows at rest."""
+    horiz, vert = base_velocity_rms(dth, dvv, dts)
+    out.figures.update(base_velocity_h_mps=horiz, base_velocity_v_mps=vert)
+    v = max(horiz, vert) if cfg['fine_filter'] == 'stationary12' else horiz
+    if v > NOISE_RATIO * cfg['zero_velocity_sigma']:
+        out.widened['zero_velocity_sigma'] = v
+        out.findings.append(f'the base moves at {v:.3g} m/s RMS at rest (sway, heave or '
+                            f'disturbance), zero_velocity_sigma {cfg["zero_velocity_sigma"]:.3g} '
+                            'm/s configured: widened')
 
 
 def _heading(out, cfg, lat):
