@@ -239,6 +239,23 @@ def test_a_robot_crawling_below_the_speed_threshold_gets_the_gnss_aided_filter()
     assert np.all(np.abs(e) <= 3.0 * out.sigma[-1])
 
 
+def test_an_aided_filter_started_at_rest_with_a_mems_gyro_claims_no_heading_until_it_moves():
+    """The car preset's coarse window (10 s) ends while seed 003's MEMS car still stands
+    (it drives off at 30 s). kf chosen explicitly ran from a heading no MEMS gyro can find
+    at rest, and ended 70 deg off under a 13 deg sigma. Now: heading unknown while still,
+    a restart from coarse when GNSS shows the car moving, then a heading inside 3 sigma."""
+    sc, st, b = simulate('seed003_car', seconds=300.0)
+    p = AlignmentPipeline(alignment_params(sc, 'kf', coarse_duration=10.0))
+    p.start_clock(0.0)
+    out = feed_arrays(p, b.imu, b.gnss)
+    rest = (out.t > 12.0) & (out.t < 28.0)
+    assert np.all(out.phase[rest] == 'fine')
+    assert np.allclose(out.sigma[rest, 2], np.pi / np.sqrt(3.0))        # heading unknown
+    assert p.n_restarts == 1 and p.status()['fine_filter'] == 'kf'
+    e = euler_error(out.euler[-1], b.imu.euler[-1])
+    assert np.all(np.abs(e) <= 3.0 * out.sigma[-1]) and out.sigma[-1, 2] < np.radians(5.0)
+
+
 def test_invalid_parameters_are_refused():
     with pytest.raises(ValueError, match='fine_filter'):
         AlignmentPipeline({'fine_filter': 'magic'})

@@ -47,6 +47,23 @@ def choose_filter(cfg, moving):
     return cfg['auto_moving_filter' if moving else 'auto_still_filter']
 
 
+def watch(gnss, cfg, t, aided, heading_known):
+    """Return why a running filter must restart now that GNSS shows motion, or None.
+
+    A stationary filter cannot take motion; an aided filter started at rest without a
+    heading (a gyro that cannot find north) restarts so that its coarse stage takes the
+    heading from the GNSS track. ``t``: the stamp of the latest GNSS message.
+    """
+    if aided and heading_known:
+        return None
+    moving, speed = gnss_motion(gnss, cfg, np.array([t - 3.0, t]))
+    if not moving:
+        return None
+    if not aided:
+        return refusal(speed, cfg['fine_filter'], 'no longer holds')
+    return f'GNSS shows the base moving at {speed:.1f} m/s: the heading becomes observable'
+
+
 def refusal(speed, fine_filter, what):
     """Return the reason a stationary filter gives when GNSS shows the base moving."""
     return (f'GNSS shows the base moving at {speed:.1f} m/s: the stationary filter '

@@ -159,11 +159,11 @@ class AlignmentPipeline:
         self._watch_motion(t)
 
     def _watch_motion(self, t):
-        """Restart a running stationary filter that GNSS shows moving (:mod:`.motion`)."""
-        if self.fine is not None and not self.aided:
-            moving, speed = motion.gnss_motion(self.gnss, self.cfg, np.array([t - 3.0, t]))
-            if moving:
-                self._diverged(motion.refusal(speed, self.cfg['fine_filter'], 'no longer holds'))
+        """Restart when GNSS shows motion a running filter cannot take (:func:`motion.watch`)."""
+        if self.fine is not None:
+            reason = motion.watch(self.gnss, self.cfg, t, self.aided, self.fine.heading_known)
+            if reason is not None:
+                self._diverged(reason)
 
     def start_clock(self, t0):
         """Set the stamp that the first increment starts from (before the first process call)."""
@@ -298,7 +298,7 @@ class AlignmentPipeline:
         no_heading = self.check is not None and not self.check.heading_observable
         # the self-check's finding replaces the coarse stage's own warning about the gyro
         self.warnings.extend(w for w in res.warnings
-                             if not (no_heading and not self.aided and w.startswith('gyro bias')))
+                             if not (no_heading and w.startswith('gyro bias')))
         self._start_engine(res)
         # fixes that came in during coarse alignment are history, not measurements
         self.gnss.pending.clear()
@@ -310,13 +310,15 @@ class AlignmentPipeline:
             self.cfg.update(self.check.widened)
             self.noise = noise_spec(self.cfg)
         self.warnings.extend(self.check.findings)
-        if not self.check.heading_observable and not self.aided:
-            self.warnings.append(self_check.NO_HEADING)
+        if not self.check.heading_observable and (at_rest or not self.aided):
+            self.warnings.append(self_check.NO_HEADING_YET if self.aided
+                                 else self_check.NO_HEADING)
 
     def _start_engine(self, start):
         engine, floor, warnings = make_engine(self.cfg, self.noise, start, bool(self.gnss.vels))
         self.warnings.extend(warnings)
-        heading_known = self.aided or self.check is None or self.check.heading_observable
+        c = self.check
+        heading_known = c is None or c.heading_observable or (self.aided and not c.at_rest)
         self.fine = FineStage(engine, floor, self.clock, self.cfg, heading_known)
 
     def _fill_last(self, out):

@@ -90,6 +90,10 @@ HEADING_BIAS_FRACTION = 0.5
 NO_HEADING = ('heading unobservable: the gyro bias is not small against the horizontal Earth '
               'rate, so this IMU cannot find north at rest (needs motion with GNSS aiding, '
               'or an external heading); heading published as unknown')
+#: the same for a GNSS-aided filter started at rest
+NO_HEADING_YET = ('heading unobservable at rest: the gyro bias is not small against the '
+                  'horizontal Earth rate; heading published as unknown until GNSS shows the '
+                  'base moving (then alignment restarts from coarse, with the GNSS track)')
 
 
 @dataclass
@@ -98,14 +102,16 @@ class SelfCheck:
 
     ``widened``: parameter name -> new value (datasheet units) where the data contradict
     the configured model; ``findings``: one sentence per widened parameter (warnings);
-    ``note``: which checks were skipped and why (informational); ``still``: the window
-    shows no motion; ``heading_observable``: the gyro can find north at rest;
+    ``note``: which checks were skipped and why (informational); ``at_rest``: nothing
+    says the base moves (as given); ``still``: the window shows no motion either;
+    ``heading_observable``: the gyro can find north at rest;
     ``figures``: the measured bounds for diagnostics.
     """
 
     widened: dict = field(default_factory=dict)
     findings: list = field(default_factory=list)
     note: str = ''
+    at_rest: bool = True
     still: bool = True
     heading_observable: bool = True
     figures: dict = field(default_factory=dict)
@@ -247,7 +253,7 @@ def check(window, position, cfg, at_rest=True, gnss=None):
     if gnss is not None:
         gnss_check(out, gnss, tt[0] - dts[0], tt[-1], cfg)
     if not at_rest:
-        out.still = False
+        out.at_rest = out.still = False
         _noise(out, cfg, difference_density(w, dt), difference_density(f, dt), moving=True)
         out.note = ('bias bounds skipped: GNSS shows the base moving, or a moving-base filter '
                     'runs without GNSS (white noise from third differences of the samples)')
