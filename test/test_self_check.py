@@ -6,8 +6,9 @@ import pytest
 
 from sins_align_ros.align import params as prm
 from sins_align_ros.align.gnss_buffer import GnssBuffer
-from sins_align_ros.align.self_check import (GYRO_BIAS_PER_ARW, check, difference_density,
-                                             robust_difference_sigma, white_density)
+from sins_align_ros.align.self_check import (GYRO_BIAS_PER_ARW, check, coherent,
+                                             difference_density, robust_difference_sigma,
+                                             white_density)
 from sins_align_ros.nav import earth
 from sins_align_ros.units import DEG, DPH, DPSH, UG
 
@@ -178,3 +179,19 @@ def test_heave_at_rest_widens_the_vertical_zero_velocity_noise(ff, widened):
                                                              rel=0.1)
     assert c.figures['base_velocity_h_mps'] < 0.02
     assert ('zero_velocity_sigma' in c.widened) == widened
+
+
+def test_a_disturbance_that_turns_and_accelerates_together_is_not_taken_for_noise():
+    """Sensor noises are independent; a knock on the base turns and accelerates the IMU
+    together. Independent noise: not coherent; a shared broadband disturbance: coherent,
+    and at rest (sway spoiling the 1-s estimate) it widens nothing."""
+    rng = np.random.default_rng(21)
+    n = 6000
+    noise_g, noise_a = rng.standard_normal((n, 3)), rng.standard_normal((n, 3))
+    assert not coherent(noise_g, noise_a)
+    knock = rng.standard_normal(n)
+    assert coherent(noise_g + 0.5 * knock[:, None], noise_a + 0.5 * knock[:, None])
+    t, dth, dv, dts = still(sway=0.05)
+    kick = 2e-6 * rng.standard_normal(len(t))                  # rad and m/s per sample
+    c = check((t, dth + kick[:, None], dv + 50.0 * kick[:, None], dts), POS, DEFAULTS)
+    assert 'disturbance' in c.note and 'gyro_arw_dpsh' not in c.widened
