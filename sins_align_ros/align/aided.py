@@ -40,7 +40,7 @@ FIXED_R_FILTERS = (KF, CKF, UKF, ASCKF)
 #: seconds over which an inflation's process-noise floor would add the state's variance
 INFLATION_SPAN = 100.0
 #: largest inflation of a measurement noise variance by the consistency monitor
-MAX_NOISE_SCALE = 1e4
+MAX_NOISE_SCALE = 100.0
 
 
 @dataclass
@@ -316,6 +316,14 @@ class GnssAidedEngine:
                            np.minimum(self.Qc * factor, self._Qc0 * 1e4))
         if self.adaptive:
             self.kf.Q = self.kf.Q * factor
+
+    def relax(self):
+        """Halve the process noise raised by :meth:`inflate` back towards the model's.
+
+        (An adaptive filter's own Q estimate is left to its estimator.)
+        """
+        held = self._Qc0 <= 0.0
+        self.Qc = np.where(held, 0.5 * self.Qc, np.maximum(0.5 * self.Qc, self._Qc0))
 
     def inflate_noise(self, factors):
         """Inflate measurement rows' noise variances: ``factors`` row -> factor.

@@ -24,7 +24,11 @@ ones when the filter follows the noisy fixes. When every row that fails its own
 chi-square test has a lag-1 correlation below :data:`MODEL_LAG1` over its last
 :data:`HISTORY` epochs, the remedy is to inflate those rows' measurement noise
 (:attr:`ConsistencyMonitor.r_factors`) and the state covariance is left alone; otherwise
-the state covariance is inflated as above. Inflating the state for a GNSS noise
+the state covariance is inflated as above. After every window of consecutive passing
+tests the raised process noise is halved back towards the model's (:attr:`relax`): an
+inflation answers a manoeuvre or a spell of bad data, not the rest of the run (kept up,
+it made MVBAKF's inverse-Wishart prior, and the KF's heading, grow without bound).
+Inflating the state for a GNSS noise
 mismatch (a default height sigma of 2 m against a 5 m receiver) would let every epoch
 pull the attitude, and repeated, destroys it.
 
@@ -74,6 +78,9 @@ class ConsistencyMonitor:
         self.r_factors = {}
         #: what the last failed test did, for the reason the phase gives
         self.remedy = ''
+        #: the last call ended a window of consecutive passing tests (relax the remedy)
+        self.relax = False
+        self._passes = 0
         self._u = {}
 
     def add(self, nis, dof, u=None, rows=None):
@@ -87,6 +94,7 @@ class ConsistencyMonitor:
         window then restarts, so the next verdict uses innovations of the inflated filter.
         """
         self.r_factors = {}
+        self.relax = False
         if not (dof > 0 and math.isfinite(nis)):
             return None
         if u is not None and rows is not None:
@@ -102,7 +110,12 @@ class ConsistencyMonitor:
         self.bound = chi2_quantile(self.probability, m) / m
         self.consistent = self.ratio <= self.bound
         if self.consistent:
+            self._passes += 1
+            # a whole window of passing tests since the last relaxation: the process
+            # noise raised by earlier inflations may come back down
+            self.relax = self._passes % self.window == 0
             return None
+        self._passes = 0
         self.n_inconsistent += 1
         factor = min(max(float(np.median(self._raw)), self.ratio), MAX_INFLATION)
         self._nis.clear()

@@ -113,4 +113,6 @@ def _navigation(cfg, noise, C, v_n, lat, lon, h, sigma, s_v, gate):
         C, v_n, lat, lon, h, P0, Qc, R, method=ff, tau_g=tau_g,
         tau_a=cfg['accel_bias_tau_s'], rho=cfg['nav_forgetting'],
         n_iter=cfg['nav_iterations'], tau=cfg['mvbakf_tau'], moment=cfg['mvbakf_moment'],
-        use_velocity=cfg['use_gnss_velocity'], **gate)
+        use_velocity=cfg['use_gnss_velocity'],
+        track_heading_sigma_deg=cfg['track_heading_sigma_deg'],
+        track_min_speed_mps=cfg['track_min_speed_mps'], **gate)

@@ -259,4 +259,6 @@ class FineStage:
                     eng.inflate(factor)
                 if self.consistency.r_factors:
                     eng.inflate_noise(self.consistency.r_factors)
+                if self.consistency.relax:
+                    eng.relax()
             self._epoch_done(t_now)

@@ -136,9 +136,9 @@ CASES = (
     Case('kf_flight', 'kf', 'bag', '15-state KF on seed 001\'s flight (straight and level, '
          'then the 2 m/s^2 acceleration from 120 s), navigation columns',
          scenario='seed001_flight', seed=1, bag_duration=150.0, params=dict(FLIGHT),
-         every=50),
+         every=50, expect=('coarse', 'fine')),
     Case('vbakf_flight', 'vbakf', 'bag', 'VBAKF on seed 001\'s flight with the paper\'s '
-         '9x Q, 30 s coarse', scenario='seed001_flight', seed=1, bag_duration=150.0,
+         '9x Q, 30 s coarse', scenario='seed001_flight', seed=1, bag_duration=200.0,
          params={**FLIGHT, 'coarse_duration': 30.0, 'nav_q_scale': 9.0}, every=50),
     Case('mvbakf_car', 'mvbakf', 'bag', 'MVBAKF on seed 003\'s car (MEMS), params from a '
          'YAML file', scenario='seed003_car', seed=5, bag_duration=120.0,
