@@ -80,6 +80,9 @@ ACCEL_BIAS_PER_VRW = 14.0
 #: on a moving base, accelerometer bias floor (ug) by gyro white noise (deg/sqrt(h), upper
 #: edge): navigation, tactical, industrial and consumer MEMS classes
 ACCEL_BIAS_BY_GYRO_NOISE = ((0.003, 100.0), (0.15, 500.0), (0.6, 2000.0), (math.inf, 5000.0))
+#: on a moving base, the most accelerometer white noise (ug/sqrt(Hz)) counted, by the
+#: same gyro classes (vibration above it is not random walk at GNSS intervals)
+ACCEL_VRW_BY_GYRO_NOISE = ((0.003, 10.0), (0.15, 80.0), (0.6, 200.0), (math.inf, 350.0))
 #: seconds of the pieces :func:`base_velocity_rms` fits a quadratic to
 VELOCITY_CHUNK_S = 10.0
 #: gyro-accelerometer correlation of sample differences, in 1/sqrt(N), that means motion
@@ -274,7 +277,12 @@ def check(window, position, cfg, at_rest=True, gnss=None):
         gnss_check(out, gnss, tt[0] - dts[0], tt[-1], cfg)
     if not at_rest:
         out.at_rest = out.still = False
-        _noise(out, cfg, difference_density(w, dt), difference_density(f, dt), moving=True)
+        arw = difference_density(w, dt)
+        # the accelerometer's high-frequency content on a moving base is mostly vibration,
+        # which averages out over a GNSS interval: count at most the white noise of IMUs
+        # of the class the gyro noise shows
+        vrw_cap = _class_value(ACCEL_VRW_BY_GYRO_NOISE, arw / DPSH) * UG
+        _noise(out, cfg, arw, min(difference_density(f, dt), vrw_cap), moving=True)
         out.note = ('bias bounds skipped: GNSS shows the base moving, or a moving-base filter '
                     'runs without GNSS (white noise from third differences of the samples)')
         return _heading(out, cfg, lat)
@@ -317,8 +325,8 @@ def _noise(out, cfg, arw, vrw, moving):
         arw_cfg = arw
         _raise(out, cfg, 'gyro_bias_dph', GYRO_BIAS_PER_ARW * arw / DPSH, 'deg/h')
         if moving:
-            floor = next(b for edge, b in ACCEL_BIAS_BY_GYRO_NOISE if arw / DPSH <= edge)
-            _raise(out, cfg, 'accel_bias_ug', floor, 'ug')
+            _raise(out, cfg, 'accel_bias_ug',
+                   _class_value(ACCEL_BIAS_BY_GYRO_NOISE, arw / DPSH), 'ug')
     if vrw > NOISE_RATIO * vrw_cfg:
         out.widened['accel_vrw_ug_rthz'] = vrw / UG
         out.findings.append(f'accelerometer white noise {vrw / UG:.3g} ug/sqrt(Hz) in the '
@@ -340,6 +348,13 @@ def _base_velocity(out, cfg, dth, dvv, dts):
         out.findings.append(f'the base moves at {v:.3g} m/s RMS at rest (sway, heave or '
                             f'disturbance), zero_velocity_sigma {cfg["zero_velocity_sigma"]:.3g} '
                             'm/s configured: widened')
+
+
+def _class_value(table, gyro_noise_dpsh):
+    """Return the value of ``table`` ((upper edge, value), ...) for a gyro noise (deg/sqrt(h))."""
+    if not math.isfinite(gyro_noise_dpsh):
+        return math.inf
+    return next(v for edge, v in table if gyro_noise_dpsh <= edge)
 
 
 def _heading(out, cfg, lat):
