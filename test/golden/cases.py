@@ -126,8 +126,7 @@ CASES = (
          scenario='seed004_high', seed=1,
          bag_duration=120.0, params={**USV_HIGH, 'gyro_bias_dph': 5.0,
                                      'stage_min_duration': 10.0,
-                                     'aligned_max_heading_sigma_deg': 5.0},
-         expect=('coarse', 'fine')),
+                                     'aligned_max_heading_sigma_deg': 5.0}),
     Case('vbch_usv_preprocess', 'vbch', 'bag', 'VBCH on the seed 004 USV through the '
          'pre-processing stage (resampling + wavelet denoising), params from a YAML file',
          scenario='seed004_high', seed=1, bag_duration=120.0,
