@@ -9,7 +9,7 @@ from sins_align_ros.models.stationary import StationaryModel, limits
 from sins_align_ros.nav import earth
 from sins_align_ros.nav.frames import attitude_error, euler_to_dcm, rotvec_to_dcm
 from sins_align_ros.nav.mechanization import StationaryStrapdown
-from sins_align_ros.sim.imu import ImuSimulator, ImuSpec
+from sins_align_ros.sim.imu import ImuSimulator, ImuSpec, specific_force_n
 from sins_align_ros.sim.trajectory import Trajectory
 from sins_align_ros.units import ARCMIN, DEG, DPH, DPSH, UG
 
@@ -129,10 +129,8 @@ def test_large_azimuth_model_predicts_the_mechanization_errors(case, heading_err
     x[7:10] = A0 @ euler_to_dcm(e0) @ eps_b          # drift in the computed frame
     for k in range(9, 6000, 10):                       # 10 Hz model steps, truth at mid-step
         km = traj.kinematics(c.t[k] - 0.05)
-        lat, h = c.pos[k, 0], c.pos[k, 2]
-        v = km.v_n[0]
-        f_n = (km.a_n[0] + np.cross(2 * earth.w_ie_n(lat) + earth.w_en_n(lat, h, v), v)
-               - earth.gravity_n(lat, h))
+        lat, h, v = c.pos[k, 0], c.pos[k, 2], km.v_n[0]
+        f_n = specific_force_n(km, lat, h)[0]
         x = la.propagate(x, f_n, v, lat, h, 0.1)
     dv = out['v_n'][-1, :2] - c.v_n[-1, :2]
     dp = earth.local_offset_m(*c.pos[-1], *out['pos'][-1])[:2]

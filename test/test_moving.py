@@ -272,7 +272,7 @@ def test_accel_bias_states_predict_the_mechanization_errors_in_a_turn():
     follows the full mechanization; seed 000's 10 states miss the bias's velocity error.
     """
     from sins_align_ros.nav import earth
-    from sins_align_ros.sim.imu import ImuSimulator, ImuSpec
+    from sins_align_ros.sim.imu import ImuSimulator, ImuSpec, specific_force_n
     from sins_align_ros.sim.presets import SEED000_SWAY
     from sins_align_ros.sim.trajectory import Segment, Trajectory
     traj = Trajectory(45.78, 126.67, 0.0, heading_deg=45.0, speed=8.0,
@@ -286,10 +286,8 @@ def test_accel_bias_states_predict_the_mechanization_errors_in_a_turn():
     x10, x13 = np.r_[0, 0, 0, 0, phi0, 0, 0, 0], np.r_[0, 0, 0, 0, phi0, 0, 0, 0, nab]
     for k in range(9, 6000, 10):                       # 10 Hz model steps, truth at mid-step
         km = traj.kinematics(c.t[k] - 0.05)
-        lat, h = c.pos[k, 0], c.pos[k, 2]
-        v = km.v_n[0]
-        f_n = (km.a_n[0] + np.cross(2 * earth.w_ie_n(lat) + earth.w_en_n(lat, h, v), v)
-               - earth.gravity_n(lat, h))
+        lat, h, v = c.pos[k, 0], c.pos[k, 2], km.v_n[0]
+        f_n = specific_force_n(km, lat, h)[0]
         x10 = la.propagate(x10, f_n, v, lat, h, 0.1)
         x13 = la.propagate(x13, f_n, v, lat, h, 0.1, C_b_n=out['C_b_n'][k - 5])
     dv = out['v_n'][-1, :2] - c.v_n[-1, :2]

@@ -115,12 +115,22 @@ def ideal_increments(traj, t_grid, pos_fn):
     w_in = w_ie + w_en
     w_nb_b = euler_rates_to_w_nb_b(kin.euler, kin.euler_rate)
     w_ib_b = w_nb_b + np.einsum('kji,kj->ki', C_b_n, w_in)
-    f_n = kin.a_n + np.cross(2.0 * w_ie + w_en, kin.v_n) - earth.gravity_n(lat, h)
+    f_n = specific_force_n(kin, lat, h)
     f_b = np.einsum('kji,kj->ki', C_b_n, f_n)
     wts = (half[:, None] * _GL_W[None, :])[..., None]
     dtheta = (w_ib_b.reshape(n, m, 3) * wts).sum(axis=1)
     dv = (f_b.reshape(n, m, 3) * wts).sum(axis=1)
     return dtheta, dv
+
+
+def specific_force_n(kin, lat, h):
+    """True specific force in ENU (N, 3), m/s^2, of trajectory kinematics ``kin``.
+
+    ``f_n = a_n + (2 w_ie_n + w_en_n) x v_n - g_n`` at latitudes ``lat`` (rad) and
+    heights ``h`` (m); ``kin`` as returned by ``Trajectory.kinematics``.
+    """
+    w = 2.0 * earth.w_ie_n(lat) + earth.w_en_n(lat, h, kin.v_n)
+    return kin.a_n + np.cross(w, kin.v_n) - earth.gravity_n(lat, h)
 
 
 class ImuErrors:
