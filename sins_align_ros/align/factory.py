@@ -20,6 +20,10 @@ from ..nav import earth
 from ..units import DPH, DPSH, UG
 
 
+#: largest heading sigma handed to the UKF (rad); see :func:`_navigation`
+UKF_HEADING_SIGMA_MAX = math.radians(30.0)
+
+
 def noise_spec(cfg):
     """Return the sensor model of parameter values ``cfg`` in SI units (:class:`NoiseSpec`)."""
     return NoiseSpec(gyro_bias=math.hypot(cfg['gyro_bias_dph'],
@@ -100,6 +104,11 @@ def _navigation(cfg, noise, C, v_n, lat, lon, h, sigma, s_v, gate):
     """Seed 001's 15-state (kf, vbakf, mvbakf) or seed 003's 18-state (ukf) engine."""
     ff = cfg['fine_filter']
     n = 18 if ff == 'ukf' else 15
+    if ff == 'ukf':
+        # sigma points sit at +-sqrt(n) sigma: a 90 deg heading sigma puts them 380 deg out,
+        # around the circle, and the tilt collapses (still MEMS IMU: tilt 10 sigma off).
+        # The heading is published as unknown above 10 deg anyway (navigation.py)
+        sigma = np.minimum(sigma, [np.inf, np.inf, UKF_HEADING_SIGMA_MAX])
     gyro = (cfg['gyro_bias_dph'] * DPH, cfg['gyro_bias_instability_dph'] * DPH)
     accel = (cfg['accel_bias_ug'] * UG, 0.0)
     tau_g = gyro_tau(n, gyro, cfg['gyro_bias_tau_s'])
