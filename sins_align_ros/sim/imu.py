@@ -124,7 +124,7 @@ def ideal_increments(traj, t_grid, pos_fn):
 
 
 def specific_force_n(kin, lat, h):
-    """True specific force in ENU (N, 3), m/s^2, of trajectory kinematics ``kin``.
+    """Return the true specific force in ENU (N, 3), m/s^2, of trajectory kinematics ``kin``.
 
     ``f_n = a_n + (2 w_ie_n + w_en_n) x v_n - g_n`` at latitudes ``lat`` (rad) and
     heights ``h`` (m); ``kin`` as returned by ``Trajectory.kinematics``.
