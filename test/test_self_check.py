@@ -6,7 +6,7 @@ import pytest
 
 from sins_align_ros.align import params as prm
 from sins_align_ros.align.gnss_buffer import GnssBuffer
-from sins_align_ros.align.self_check import (GYRO_BIAS_PER_ARW, check, coherent,
+from sins_align_ros.align.self_check import (GYRO_BIAS_PER_ARW_MOVING, check, coherent,
                                              difference_density, robust_difference_sigma,
                                              white_density)
 from sins_align_ros.nav import earth
@@ -95,7 +95,7 @@ def test_a_moving_base_checks_the_noise_but_not_the_biases():
               at_rest=False)
     assert not c.still and 'bias bounds skipped' in c.note
     assert c.widened['gyro_arw_dpsh'] == pytest.approx(0.1, rel=0.1)
-    assert c.widened['gyro_bias_dph'] == pytest.approx(GYRO_BIAS_PER_ARW * 0.1, rel=0.1)
+    assert c.widened['gyro_bias_dph'] == pytest.approx(GYRO_BIAS_PER_ARW_MOVING * 0.1, rel=0.1)
     assert c.widened['accel_bias_ug'] == 500.0
     assert 'accel_bias_bound_ug' not in c.figures
 

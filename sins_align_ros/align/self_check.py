@@ -28,7 +28,8 @@ the finding is reported:
   sigma to the bound. On a moving base this check is skipped (said so).
 * **Grade**: noise found larger than configured means the IMU is not of the configured
   grade, and its biases are then larger too; the bias sigmas are raised to at least
-  :data:`GYRO_BIAS_PER_ARW` / :data:`ACCEL_BIAS_PER_VRW` times the measured noise (near
+  :data:`GYRO_BIAS_PER_ARW` / :data:`ACCEL_BIAS_PER_VRW` times the measured noise, and
+  the gyro bias instability to :data:`GYRO_INSTABILITY_PER_ARW` times it (near
   the upper end of the bias-to-noise ratios of our sensor-grade presets, which span
   10-67 deg/h per deg/sqrt(h) and 6-14 ug per ug/sqrt(Hz)). At rest a horizontal
   accelerometer bias and most of a gyro bias cannot be told from tilt and heading, so
@@ -77,6 +78,11 @@ RATE_TOL = 0.05 * DPH
 #: typical bias-to-noise ratios: gyro deg/h per deg/sqrt(h), accelerometer ug per ug/sqrt(Hz)
 GYRO_BIAS_PER_ARW = 30.0
 ACCEL_BIAS_PER_VRW = 14.0
+#: the same on a moving base (the upper end of our presets' 10-67)
+GYRO_BIAS_PER_ARW_MOVING = 67.0
+#: the varying part of the gyro bias (gyro_bias_instability_dph) per deg/sqrt(h) of noise
+#: (our presets: 10-20; it keeps a heading learnt in a turn from being trusted for ever)
+GYRO_INSTABILITY_PER_ARW = 15.0
 #: on a moving base, accelerometer bias floor (ug) by gyro white noise (deg/sqrt(h), upper
 #: edge): navigation, tactical, industrial and consumer MEMS classes
 ACCEL_BIAS_BY_GYRO_NOISE = ((0.003, 100.0), (0.15, 500.0), (0.6, 2000.0), (math.inf, 5000.0))
@@ -323,7 +329,12 @@ def _noise(out, cfg, arw, vrw, moving):
         out.findings.append(f'gyro white noise {arw / DPSH:.3g} deg/sqrt(h) in the data, '
                             f'{cfg["gyro_arw_dpsh"]:.3g} configured: gyro_arw_dpsh widened')
         arw_cfg = arw
-        _raise(out, cfg, 'gyro_bias_dph', GYRO_BIAS_PER_ARW * arw / DPSH, 'deg/h')
+        # on a moving base a wide bias prior costs little (GNSS aiding observes the bias
+        # through the motion), so take the upper end of the presets' ratios there
+        per_arw = GYRO_BIAS_PER_ARW_MOVING if moving else GYRO_BIAS_PER_ARW
+        _raise(out, cfg, 'gyro_bias_dph', per_arw * arw / DPSH, 'deg/h')
+        _raise(out, cfg, 'gyro_bias_instability_dph', GYRO_INSTABILITY_PER_ARW * arw / DPSH,
+               'deg/h')
         if moving:
             _raise(out, cfg, 'accel_bias_ug',
                    _class_value(ACCEL_BIAS_BY_GYRO_NOISE, arw / DPSH), 'ug')
