@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..nav.coarse import body_attitude_increments
+from ..nav.coarse import velocity_integral_b0
 
 #: the integrated specific force departs from a quadratic in time by more than this, m/s
 DRIVE_DV_MPS = 1.0
@@ -128,11 +128,9 @@ def imu_translation(window):
     tt, dth, dvv, dts = window
     if len(tt) < 10:
         return None
-    C = body_attitude_increments(dth)
+    C, V = velocity_integral_b0(dth, dvv)
     cos_turn = (np.trace(C, axis1=1, axis2=2) - 1.0) / 2.0
     turn = float(np.max(np.arccos(np.clip(cos_turn, -1.0, 1.0))))
-    C_prev = np.concatenate([np.eye(3)[None], C[:-1]])
-    V = np.cumsum(np.einsum('kij,kj->ki', C_prev, dvv), axis=0)
     t = tt - tt[0]
     A = np.column_stack([np.ones_like(t), t, t * t])
     coef, *_ = np.linalg.lstsq(A, V, rcond=None)

@@ -63,7 +63,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..nav import earth
-from ..nav.coarse import body_attitude_increments, detect_motion
+from ..nav.coarse import detect_motion, velocity_integral_b0
 from ..units import DPH, DPSH, UG
 from .factory import uses_reported_covariance
 
@@ -156,9 +156,7 @@ def base_velocity_rms(dth, dvv, dts):
     k = len(dth) // m
     if k < 1:
         return float('nan'), float('nan')
-    C = body_attitude_increments(dth)
-    C_prev = np.concatenate([np.eye(3)[None], C[:-1]])
-    V = np.cumsum(np.einsum('kij,kj->ki', C_prev, dvv), axis=0)[:k * m].reshape(k, m, 3)
+    V = velocity_integral_b0(dth, dvv)[1][:k * m].reshape(k, m, 3)
     up = dvv.sum(axis=0)
     up /= np.linalg.norm(up)
     t = np.cumsum(dts[:m]) - dts[0]

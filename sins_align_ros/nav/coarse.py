@@ -71,6 +71,18 @@ def body_attitude_increments(dtheta):
     return out
 
 
+def velocity_integral_b0(dtheta, dv):
+    """Body attitudes and the specific-force integral in the initial body frame b0.
+
+    Returns ``C_bb0`` (N, 3, 3) (:func:`body_attitude_increments`) and ``V_b0`` (N, 3),
+    m/s: the sum of ``C_b(k-1)^b0 (dv + 0.5 dtheta x dv)`` (rotation-compensated).
+    """
+    C_bb0 = body_attitude_increments(dtheta)
+    C_prev = np.concatenate([np.eye(3)[None], C_bb0[:-1]])
+    dv_c = dv + 0.5 * np.cross(dtheta, dv)
+    return C_bb0, np.cumsum(np.einsum('kij,kj->ki', C_prev, dv_c), axis=0)
+
+
 def inertial_frame(dtheta, dv, dt, lat, h=0.0, dv_n=None, n_epochs=50):
     """Inertial-frame (i0) coarse alignment, tolerant of sway and disturbance.
 
@@ -95,11 +107,7 @@ def inertial_frame(dtheta, dv, dt, lat, h=0.0, dv_n=None, n_epochs=50):
     n = len(dtheta)
     dt = np.broadcast_to(np.asarray(dt, dtype=float), (n,))
     t = np.cumsum(dt)
-    C_bb0 = body_attitude_increments(dtheta)
-    # sculling-free specific-force integral in b0: sum of C_b(k-1)^b0 (dv + 0.5 dtheta x dv)
-    C_prev = np.concatenate([np.eye(3)[None], C_bb0[:-1]])
-    dv_c = dv + 0.5 * np.cross(dtheta, dv)
-    V_b0 = np.cumsum(np.einsum('kij,kj->ki', C_prev, dv_c), axis=0)
+    C_bb0, V_b0 = velocity_integral_b0(dtheta, dv)
     # gravity integral in i0 (ENU at t0, fixed in inertial space): the up vector turns
     # about the Earth axis u at the Earth rate: C_n(t)^i0 = exp(W t [u x])
     g = earth.gravity(lat, h)
