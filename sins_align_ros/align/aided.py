@@ -21,12 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..filters.asckf import ASCKF
-from ..filters.ckf import CKF
 from ..filters.cubature import batched
 from ..filters.kf import nis
-from ..filters.linear_kf import KF
-from ..filters.ukf import UKF
 from ..nav.mechanization import MechanizationOptions, Strapdown
 from ..units import DPH
 from .gnss_gate import FilterDiverged
@@ -35,8 +31,6 @@ from .gnss_gate import FilterDiverged
 MAX_PREDICT = 2.0
 #: variance of an angle known to be anywhere in (-pi, pi] (uniform), rad^2
 ANGLE_UNKNOWN_VAR = math.pi ** 2 / 3.0
-#: filters whose R is what the engine gives them (the others estimate it themselves)
-FIXED_R_FILTERS = (KF, CKF, UKF, ASCKF)
 #: seconds over which an inflation's process-noise floor would add the state's variance
 INFLATION_SPAN = 100.0
 #: largest inflation of a measurement noise variance by the consistency monitor
@@ -140,9 +134,9 @@ class GnssAidedEngine:
         self.last_u = self.last_rows = None
         self._Qc0 = self.Qc.copy()
         #: factors on the measurement noise variances (the consistency monitor's remedy);
-        #: used by filters that take R from the engine (:data:`FIXED_R_FILTERS`)
+        #: used by filters that take R from the engine (not ``estimates_R``, not adaptive)
         self.R_scale = np.ones(len(self.R_nominal))
-        self.sets_R = type(kf) in FIXED_R_FILTERS and not self.adaptive
+        self.sets_R = not (getattr(kf, 'estimates_R', False) or self.adaptive)
 
     # -- IMU rate -------------------------------------------------------------------
     def step_imu(self, dtheta, dv, dt):

@@ -54,6 +54,9 @@ class MVBAKF(KF):
     Interface: :class:`~sins_align_ros.filters.base.GaussianFilter`.
     """
 
+    #: the filter estimates R itself (the engine does not set it per epoch)
+    estimates_R = True
+
     def __init__(self, x0, P0, Q, R, tau=6.0, rho=0.95, n_iter=5, u0=None, moment='mean',
                  r_max_scale=R_MAX_SCALE):
         super().__init__(x0, P0, Q, R)

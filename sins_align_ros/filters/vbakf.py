@@ -38,6 +38,9 @@ class VBAKF(KF):
     :class:`~sins_align_ros.filters.base.GaussianFilter`.
     """
 
+    #: the filter estimates R itself (the engine does not set it per epoch)
+    estimates_R = True
+
     def __init__(self, x0, P0, Q, R, rho=0.95, n_iter=5, r_max_scale=R_MAX_SCALE):
         super().__init__(x0, P0, Q, R)
         self.rho = float(rho)

@@ -55,6 +55,9 @@ class VBCKF(CKF):
         Student-t outlier scale's degrees of freedom (None or inf: off, the seed).
     """
 
+    #: the filter estimates R itself (the engine does not set it per epoch)
+    estimates_R = True
+
     def __init__(self, x0, P0, Q, R, rho=0.98, n_iter=20, dof=None):
         self.rho = float(rho)
         self.alpha = prior_alpha(self.rho, len(R))
