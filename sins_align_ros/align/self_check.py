@@ -366,21 +366,31 @@ def _class_value(table, gyro_noise_dpsh):
     return next(v for edge, v in table if gyro_noise_dpsh <= edge)
 
 
+def _model(out, cfg, name):
+    """Return parameter ``name`` of the model as the check has widened it so far."""
+    return out.widened.get(name, cfg[name])
+
+
+def _gyro_bias_sigma(out, cfg):
+    """Return the (widened) gyro bias 1-sigma, constant and varying parts, rad/s."""
+    return math.hypot(_model(out, cfg, 'gyro_bias_dph'),
+                      _model(out, cfg, 'gyro_bias_instability_dph')) * DPH
+
+
 def _heading(out, cfg, lat):
     """Set ``out.heading_observable`` from the (widened) gyro bias sigma; return ``out``."""
-    gyro_sigma = math.hypot(out.widened.get('gyro_bias_dph', cfg['gyro_bias_dph']),
-                            cfg['gyro_bias_instability_dph']) * DPH
+    gyro_sigma = _gyro_bias_sigma(out, cfg)
     out.heading_observable = gyro_sigma <= HEADING_BIAS_FRACTION * earth.OMEGA_IE * math.cos(lat)
     return out
 
 
 def _raise(out, cfg, name, value, unit):
     """Raise bias sigma ``name`` to ``value`` for the grade the noise shows (if larger)."""
-    if value > cfg[name]:
+    if value > _model(out, cfg, name):
+        out.findings.append(f'{name} raised from {_model(out, cfg, name):.3g} to {value:.3g} '
+                            f'{unit}: the noise shows an IMU of a lower grade than configured, '
+                            'whose biases are larger too')
         out.widened[name] = value
-        out.findings.append(f'{name} raised from {cfg[name]:.3g} to {value:.3g} {unit}: the '
-                            'noise shows an IMU of a lower grade than configured, whose biases '
-                            'are larger too')
 
 
 def _biases(out, w_b, f_b, T, lat, h, cfg, arw, vrw):
@@ -388,7 +398,7 @@ def _biases(out, w_b, f_b, T, lat, h, cfg, arw, vrw):
     g = earth.gravity(lat, h)
     f_norm = float(np.linalg.norm(f_b))
     accel_bound = abs(f_norm - g)
-    accel_sigma = out.widened.get('accel_bias_ug', cfg['accel_bias_ug']) * UG
+    accel_sigma = _model(out, cfg, 'accel_bias_ug') * UG
     tol_a = 2.0 * accel_sigma + 3.0 * vrw / math.sqrt(T) + GRAVITY_TOL
     _bound(out, 'accel_bias_ug', accel_bound / UG, tol_a / UG, accel_sigma / UG,
            f'specific force {f_norm:.5g} m/s^2 at rest against gravity {g:.5g}: an '
@@ -398,8 +408,7 @@ def _biases(out, w_b, f_b, T, lat, h, cfg, arw, vrw):
     w_h = float(np.linalg.norm(w_b - w_up * u))
     bound = max(abs(w_up - earth.OMEGA_IE * math.sin(lat)),
                 abs(w_h - earth.OMEGA_IE * math.cos(lat)))
-    gyro_sigma = math.hypot(out.widened.get('gyro_bias_dph', cfg['gyro_bias_dph']),
-                            cfg['gyro_bias_instability_dph']) * DPH
+    gyro_sigma = _gyro_bias_sigma(out, cfg)
     tol_g = 2.0 * gyro_sigma + 3.0 * arw / math.sqrt(T) + RATE_TOL
     _bound(out, 'gyro_bias_dph', bound / DPH, tol_g / DPH, gyro_sigma / DPH,
            f'mean rate at rest differs from Earth rate by {bound / DPH:.3g} deg/h: a gyro '
