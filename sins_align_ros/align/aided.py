@@ -37,6 +37,17 @@ INFLATION_SPAN = 100.0
 MAX_NOISE_SCALE = 100.0
 
 
+def cap_angles(P, rows):
+    """Return covariance ``P`` with no variance of angle ``rows`` above :data:`ANGLE_UNKNOWN_VAR`.
+
+    A misalignment is never more uncertain than an angle anywhere in a circle: those
+    rows and columns are scaled down to it, which keeps ``P`` positive semi-definite.
+    """
+    s = np.ones(len(P))
+    s[rows] = np.sqrt(np.minimum(1.0, ANGLE_UNKNOWN_VAR / np.diag(P)[rows]))
+    return P * np.outer(s, s)
+
+
 @dataclass
 class GnssFix:
     """One GNSS epoch: position (rad, rad, m), optional ENU velocity (3,) and variances.
@@ -133,6 +144,8 @@ class GnssAidedEngine:
         self.last_dof = 0
         self.last_u = self.last_rows = None
         self._Qc0 = self.Qc.copy()
+        #: states the model holds constant (no process noise of their own)
+        self._held = self._Qc0 <= 0.0
         #: factors on the measurement noise variances (the consistency monitor's remedy);
         #: used by filters that take R from the engine (not ``estimates_R``, not adaptive)
         self.R_scale = np.ones(len(self.R_nominal))
@@ -207,21 +220,17 @@ class GnssAidedEngine:
         rows = self.rows[idx]
         hx = batched(lambda X: X[rows])
         self._set_process_noise()
-        if self.sets_R:
+        if self.sets_R or self.use_reported_cov:   # (never for an adaptive filter)
             R = self.R_nominal.copy()
             if self.use_reported_cov:
                 if fix.pos_var is not None:
                     R[0, 0], R[1, 1] = fix.pos_var
                 if self.use_velocity and fix.vel_var is not None:
                     R[2, 2], R[3, 3] = fix.vel_var
-            s = np.sqrt(self.R_scale)
-            kf.R = R * np.outer(s, s)
-        elif self.use_reported_cov:        # never for an adaptive filter (see __init__)
-            kf.R = self.R_nominal.copy()
-            if fix.pos_var is not None:
-                kf.R[0, 0], kf.R[1, 1] = fix.pos_var
-            if self.use_velocity and fix.vel_var is not None:
-                kf.R[2, 2], kf.R[3, 3] = fix.vel_var
+            if self.sets_R:
+                s = np.sqrt(self.R_scale)
+                R = R * np.outer(s, s)
+            kf.R = R
         max_nis = self.gate.threshold(len(idx), kf)
         try:
             upd = kf.step(fx, z, hx, idx, max_nis=max_nis)
@@ -296,17 +305,11 @@ class GnssAidedEngine:
         a zero cannot be scaled.
         """
         P = self.kf.P * math.sqrt(factor)
-        # a misalignment is never more uncertain than an angle anywhere in a circle
-        # (variance pi^2/3): scale those rows and columns down to it, which keeps P PSD
-        k = np.arange(len(P))[self.i_phi]
-        s = np.ones(len(P))
-        s[k] = np.sqrt(np.minimum(1.0, ANGLE_UNKNOWN_VAR / np.diag(P)[k]))
-        self.kf.P = P * np.outer(s, s)
+        self.kf.P = cap_angles(P, np.arange(len(P))[self.i_phi])
         # states the model holds constant (zero process noise) get some: the model
         # error may be theirs (a bias that varies, a constant one larger than its prior)
-        held = self._Qc0 <= 0.0
         floor = (factor - 1.0) * np.diag(self.kf.P) / INFLATION_SPAN
-        self.Qc = np.where(held, np.maximum(self.Qc, floor),
+        self.Qc = np.where(self._held, np.maximum(self.Qc, floor),
                            np.minimum(self.Qc * factor, self._Qc0 * 1e4))
         if self.adaptive:
             self.kf.Q = self.kf.Q * factor
@@ -316,8 +319,7 @@ class GnssAidedEngine:
 
         (An adaptive filter's own Q estimate is left to its estimator.)
         """
-        held = self._Qc0 <= 0.0
-        self.Qc = np.where(held, 0.5 * self.Qc, np.maximum(0.5 * self.Qc, self._Qc0))
+        self.Qc = np.where(self._held, 0.5 * self.Qc, np.maximum(0.5 * self.Qc, self._Qc0))
 
     def inflate_noise(self, factors):
         """Inflate measurement rows' noise variances: ``factors`` row -> factor.

@@ -28,9 +28,8 @@ the state covariance is inflated as above. After every window of consecutive pas
 tests the raised process noise is halved back towards the model's (:attr:`relax`): an
 inflation answers a manoeuvre or a spell of bad data, not the rest of the run (kept up,
 it made MVBAKF's inverse-Wishart prior, and the KF's heading, grow without bound).
-Inflating the state for a GNSS noise
-mismatch (a default height sigma of 2 m against a 5 m receiver) would let every epoch
-pull the attitude, and repeated, destroys it.
+Inflating the state for a GNSS noise mismatch (a default height sigma of 2 m against a
+5 m receiver) would let every epoch pull the attitude, and repeated, destroys it.
 
 Not in the seeds (their filters adapt R or Q, or fade, each in its own way); this is
 the one check every GNSS-aided filter shares, so that a published sigma stays a claim.
@@ -70,7 +69,6 @@ class ConsistencyMonitor:
         #: NIS sum over degrees of freedom, and the test's bound on it, of the last test
         self.ratio = float('nan')
         self.bound = float('nan')
-        self.n_inconsistent = 0
         self.n_inflations = 0
         self.n_r_inflations = 0
         #: measurement row -> factor for its noise variance, set when a failed test is
@@ -116,7 +114,6 @@ class ConsistencyMonitor:
             self.relax = self._passes % self.window == 0
             return None
         self._passes = 0
-        self.n_inconsistent += 1
         factor = min(max(float(np.median(self._raw)), self.ratio), MAX_INFLATION)
         self._nis.clear()
         self._dof.clear()

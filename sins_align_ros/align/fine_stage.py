@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from .aided import ANGLE_UNKNOWN_VAR
+from .aided import ANGLE_UNKNOWN_VAR, cap_angles
 from .consistency import ConsistencyMonitor
 from .convergence import ConvergenceMonitor
 from .gnss_gate import FilterDiverged
@@ -85,9 +85,7 @@ class FineStage:
                 P[2, :2] = P[:2, 2] = 0.0
                 P[2, 2] = HEADING_UNKNOWN_VAR
             elif np.any(np.diag(P) > ANGLE_UNKNOWN_VAR):
-                # nothing is less known than an angle anywhere in a circle
-                s = np.sqrt(np.minimum(1.0, ANGLE_UNKNOWN_VAR / np.diag(P)))
-                P = P * np.outer(s, s)
+                P = cap_angles(P, np.arange(3))
             self._att_cov = P
         return self._att_cov
 
