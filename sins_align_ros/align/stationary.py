@@ -12,7 +12,7 @@ transient leaves in the bias estimates.
 import numpy as np
 
 from ..filters import kf
-from ..models.stationary import StationaryModel
+from ..models.stationary import unobservable_variance
 from ..nav import earth
 from ..nav.frames import rotvec_to_dcm
 from ..nav.mechanization import StationaryStrapdown
@@ -59,8 +59,7 @@ class StationaryEngine:
         #: variances (3,) the model cannot see, added to the attitude covariance at output
         self.floor = m.attitude_floor(lat, noise)
         #: variances (3,) below which the 10/12-state misalignment is never reported
-        self.bound = (np.zeros(3) if m.name == 'reduced7'
-                      else StationaryModel('reduced7').attitude_floor(lat, noise))
+        self.bound = np.zeros(3) if m.name == 'reduced7' else unobservable_variance(lat, noise)
         self.period = float(period)
         self.since_update = 0.0
         self.n_updates = 0

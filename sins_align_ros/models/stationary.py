@@ -166,10 +166,19 @@ class StationaryModel:
         """
         if self.name != 'reduced7':
             return np.zeros(3)
-        g = earth.gravity(lat, 0.0)
-        tilt = (noise.accel_bias / g) ** 2
-        head = (noise.gyro_bias / (earth.OMEGA_IE * np.cos(lat))) ** 2
-        return np.array([tilt, tilt, head])
+        return unobservable_variance(lat, noise)
+
+
+def unobservable_variance(lat, noise):
+    """Misalignment variances (3,) rad^2 the biases leave at rest (seed 002 eq. 15).
+
+    Tilt ``(a/g)^2`` east and north, heading ``(eps_E/(W cos L))^2``, from the bias
+    sigmas of ``noise`` (:class:`NoiseSpec`) at latitude ``lat`` (rad).
+    """
+    g = earth.gravity(lat, 0.0)
+    tilt = (noise.accel_bias / g) ** 2
+    head = (noise.gyro_bias / (earth.OMEGA_IE * np.cos(lat))) ** 2
+    return np.array([tilt, tilt, head])
 
 
 MODELS = ('reduced7', 'stationary10', 'stationary12')
