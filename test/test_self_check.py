@@ -166,8 +166,8 @@ def test_gnss_noise_above_the_model_widens_it(ff, reported, widened):
 @pytest.mark.parametrize('ff, widened', [('stationary12', True), ('reduced7', False)])
 def test_heave_at_rest_widens_the_vertical_zero_velocity_noise(ff, widened):
     """A moored ship heaving 0.5 m over 6 s moves at 0.37 m/s RMS vertically: the 12-state
-    filter, which measures the vertical velocity as zero, gets that noise; the horizontal
-    filters keep theirs (the ship does not move horizontally)."""
+    filter, which measures the vertical velocity as zero, gets that noise on its vertical
+    row only; the horizontal rows keep theirs (the ship does not move horizontally)."""
     from sins_align_ros.eval.scenarios import named, simulate
     b = simulate(named('ship_sway', 60.0), 1)
     dts = np.diff(np.r_[0.0, b.imu.t])
@@ -178,7 +178,12 @@ def test_heave_at_rest_widens_the_vertical_zero_velocity_noise(ff, widened):
     assert c.figures['base_velocity_v_mps'] == pytest.approx(0.5 * 2 * np.pi / 6 / np.sqrt(2),
                                                              rel=0.1)
     assert c.figures['base_velocity_h_mps'] < 0.02
-    assert ('zero_velocity_sigma' in c.widened) == widened
+    assert ('zero_velocity_sigma_up' in c.widened) == widened
+    if widened:
+        assert c.widened['zero_velocity_sigma_up'] == pytest.approx(
+            c.figures['base_velocity_v_mps'])
+    # the horizontal rows, which carry tilt and heading, keep their noise
+    assert 'zero_velocity_sigma' not in c.widened
 
 
 def test_a_disturbance_that_turns_and_accelerates_together_is_not_taken_for_noise():

@@ -33,6 +33,12 @@ def noise_spec(cfg):
                      accel_vrw=cfg['accel_vrw_ug_rthz'] * UG)
 
 
+def zero_velocity_sigmas(cfg):
+    """East, north, up zero-velocity sigmas (3,) m/s of the stationary filter."""
+    zv = cfg['zero_velocity_sigma']
+    return np.array([zv, zv, cfg['zero_velocity_sigma_up'] or zv])
+
+
 def is_aided(fine_filter):
     """Tell whether ``fine_filter`` is a GNSS-aided (moving-base) filter."""
     return fine_filter in prm.MOVING_FILTERS
@@ -58,7 +64,7 @@ def make_engine(cfg, noise, start, has_velocity):
     ff = cfg['fine_filter']
     if not is_aided(ff):
         eng = StationaryEngine(StationaryModel(ff), noise, start.C_b_n, start.sigma,
-                               start.position, cfg['zero_velocity_sigma'],
+                               start.position, zero_velocity_sigmas(cfg),
                                1.0 / cfg['fine_update_hz'])
         return eng, eng.floor, []
     C, v_n, sigma, s_v = start.C_b_n, start.v_n, start.sigma, start.sigma_v

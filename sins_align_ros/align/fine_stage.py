@@ -132,7 +132,8 @@ class FineStage:
         if not self.converged:
             if not self.monitor.converged(t, sig_u):
                 return
-            if self.engine.restages and self.stage < self.max_stages:
+            if (self.engine.restages and self.engine.restage_helps
+                    and self.stage < self.max_stages):
                 self.engine.restage()
                 self._att_cov = None
                 self.stage += 1

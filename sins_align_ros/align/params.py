@@ -90,9 +90,13 @@ ALIGNMENT_PARAMS = (
     Param('accel_vrw_ug_rthz', 10.0, 'accelerometer white noise, micro-g/sqrt(Hz)', 0.0, 1e5),
     Param('zero_velocity_sigma', 0.01, 'zero-velocity measurement noise, m/s (still base)',
           1e-5, 10.0),
+    Param('zero_velocity_sigma_up', 0.0, 'vertical zero-velocity measurement noise, m/s '
+          '(stationary12, which measures the vertical velocity: a moored ship heaves); '
+          '0 = zero_velocity_sigma', 0.0, 10.0),
     Param('fine_update_hz', 10.0, 'fine-filter measurement rate, Hz', 0.1, 1000.0),
-    Param('max_stages', 3, 'staged re-initialisations of the fine filter after convergence '
-          '(seed 002 sec. 4; 1 = none)', 1, 10),
+    Param('max_stages', 3, 'staged re-initialisations of the stationary filter after '
+          'convergence (seed 002 sec. 4; 1 = none), made only after an initial misalignment '
+          'large enough for the first stage\'s linear model to leave an error', 1, 10),
     Param('stage_min_duration', 30.0, 'minimum time of one fine-alignment stage, s',
           5.0, 3600.0),
     Param('aligned_max_tilt_sigma_deg', 1.0, 'aligned only while the roll and pitch 1-sigma '

@@ -48,8 +48,8 @@ the finding is reported:
   :data:`VELOCITY_CHUNK_S` seconds, is the velocity the base really has (sway, heave,
   people walking on it) plus a little sensor random walk; its RMS widens
   ``zero_velocity_sigma`` when more than :data:`NOISE_RATIO` times larger
-  (horizontal, and vertical too for ``stationary12``, which measures the vertical
-  velocity: a moored ship's 0.5 m heave moves it at 0.5 m/s).
+  (horizontal; the vertical one widens ``zero_velocity_sigma_up`` for ``stationary12``,
+  which measures the vertical velocity: a moored ship's 0.5 m heave moves it at 0.5 m/s).
 * **Heading observability**: a gyro whose bias sigma (after widening) is not small
   against the horizontal Earth rate cannot find north at rest; the result says so
   and the stationary filters publish the heading as unknown.
@@ -348,15 +348,25 @@ def _noise(out, cfg, arw, vrw, moving):
 
 
 def _base_velocity(out, cfg, dth, dvv, dts):
-    """Widen ``zero_velocity_sigma`` to the velocity the base shows at rest."""
+    """Widen the zero-velocity sigmas to the velocity the base shows at rest.
+
+    The horizontal RMS widens ``zero_velocity_sigma``; for ``stationary12``, which
+    measures the vertical velocity too, the vertical RMS (heave) widens
+    ``zero_velocity_sigma_up`` apart from it (one sigma for both gave the horizontal rows,
+    which carry the tilt and heading, a moored ship's heave: heading sigma 4-5x its error).
+    """
     horiz, vert = base_velocity_rms(dth, dvv, dts)
     out.figures.update(base_velocity_h_mps=horiz, base_velocity_v_mps=vert)
-    v = max(horiz, vert) if cfg['fine_filter'] == 'stationary12' else horiz
-    if v > NOISE_RATIO * cfg['zero_velocity_sigma']:
-        out.widened['zero_velocity_sigma'] = v
-        out.findings.append(f'the base moves at {v:.3g} m/s RMS at rest (sway, heave or '
-                            f'disturbance), zero_velocity_sigma {cfg["zero_velocity_sigma"]:.3g} '
-                            'm/s configured: widened')
+    zv = cfg['zero_velocity_sigma']
+    axes = [('zero_velocity_sigma', horiz, zv, 'horizontally')]
+    if cfg['fine_filter'] == 'stationary12':
+        axes.append(('zero_velocity_sigma_up', vert, cfg['zero_velocity_sigma_up'] or zv,
+                     'vertically'))
+    for name, v, model, how in axes:
+        if v > NOISE_RATIO * model:
+            out.widened[name] = v
+            out.findings.append(f'the base moves {how} at {v:.3g} m/s RMS at rest (sway, heave '
+                                f'or disturbance), {name} {model:.3g} m/s configured: widened')
 
 
 def _class_value(table, gyro_noise_dpsh):

@@ -8,6 +8,14 @@ mechanization. When the heading uncertainty has converged the pipeline may
 re-initialise the filter (:meth:`StationaryEngine.restage`): seed 002's closing
 suggestion of staged re-initialisation, which removes the error that the first
 transient leaves in the bias estimates.
+
+We restage only where that error can matter (:func:`restage_helps`): the transient is
+the linear model's neglect of the second-order terms of a large initial misalignment
+(seed 002 sec. 4 starts from 10 deg). From a small one (a navigation-grade coarse
+alignment leaves 0.5 deg) a restage only throws away the bias/heading correlation the
+first stage learnt: the 10/12-state heading sigma went back from 3.4' to 29' at 270 s
+on a still navigation-grade IMU (error 0.1-2'), and ``aligned`` came at 480 s instead
+of 300 s.
 """
 import numpy as np
 
@@ -19,6 +27,22 @@ from ..nav.mechanization import StationaryStrapdown
 
 #: the filter period is reached when the accumulated time is within this of it, s
 _EPS_T = 1e-9
+#: the initial misalignment counted, in sigmas, when judging the first stage's nonlinearity
+_K_NONLINEAR = 3.0
+
+
+def restage_helps(sigma_phi, lat, noise):
+    """Whether re-initialising after the first stage can remove an error it leaves.
+
+    The first stage's linear model neglects terms of order ``phi^2 / 2`` of the initial
+    misalignment ``phi``; they go into the bias estimates. Counting ``phi`` at 3 sigma
+    (``sigma_phi`` (3,), rad), a restage helps when that term exceeds the heading's own
+    limit at rest, the 1-sigma the gyro bias leaves (``eps_E / (W cos L)``,
+    :func:`~sins_align_ros.models.stationary.unobservable_variance` at latitude ``lat``
+    for the :class:`NoiseSpec` ``noise``).
+    """
+    worst = _K_NONLINEAR * float(np.max(sigma_phi))
+    return 0.5 * worst ** 2 > float(np.sqrt(unobservable_variance(lat, noise)[2]))
 
 
 class StationaryEngine:
@@ -34,8 +58,9 @@ class StationaryEngine:
         Initial misalignment sigma, rad.
     position : ndarray (3,)
         Latitude, longitude (rad), height (m).
-    zero_velocity_sigma : float
-        Sigma of the zero-velocity measurement, m/s.
+    zero_velocity_sigma : float or sequence (3,)
+        Sigma of the zero-velocity measurement, m/s: one for every axis, or east, north,
+        up (the vertical one is used by models that measure it).
     period : float
         Filter period, s.
     """
@@ -55,12 +80,15 @@ class StationaryEngine:
         self.x = np.zeros(m.n)
         self.P = m.P0(0.01, sigma_phi, noise)
         self.H = m.H()
-        self.R = np.eye(len(m.meas)) * zero_velocity_sigma ** 2
+        zv = np.broadcast_to(np.asarray(zero_velocity_sigma, dtype=float), (3,))
+        self.R = np.diag(zv[m.meas] ** 2)
         #: variances (3,) the model cannot see, added to the attitude covariance at output
         self.floor = m.attitude_floor(lat, noise)
         #: variances (3,) below which the 10/12-state misalignment is never reported
         self.bound = np.zeros(3) if m.name == 'reduced7' else unobservable_variance(lat, noise)
         self.period = float(period)
+        #: the fine stage may restage this filter (a large initial misalignment)
+        self.restage_helps = restage_helps(sigma_phi, lat, noise)
         self.since_update = 0.0
         self.n_updates = 0
         self.last_nis = float('nan')

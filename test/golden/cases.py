@@ -148,10 +148,10 @@ CASES = (
     # real recordings
     Case('psins_lasergyro_reduced7_300s', 'reduced7', 'psins', 'laser-gyro recording, '
          'default parameters, first 300 s', recording='psins_lasergyro.imu',
-         args=('--duration', '300'), every=100, expect=('coarse', 'fine')),
+         args=('--duration', '300'), every=100, expect=('coarse', 'fine', 'aligned')),
     Case('psins_lasergyro_stationary12_300s', 'stationary12', 'psins', 'laser-gyro '
          'recording, 12-state filter, first 300 s', recording='psins_lasergyro.imu',
-         args=('--duration', '300'), every=100, expect=('coarse', 'fine')),
+         args=('--duration', '300'), every=100, expect=('coarse', 'fine', 'aligned')),
     Case('fog_mems_car_asckf', 'asckf', 'fog', 'fog_mems car recording (100 s) through '
          'AlignmentPipeline + feed_arrays, GNSS-like position and velocity',
          params=dict(FOG), every=25),
