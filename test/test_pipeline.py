@@ -57,6 +57,33 @@ def test_seed002_fine_alignment_ends_at_the_sensor_limit(model, mis):
     assert np.all(np.abs(err[-1]) <= 3.0 * np.sqrt(np.diagonal(out.P_phi[-1])))
 
 
+def test_stationary_filter_restages_only_after_a_large_initial_misalignment():
+    """Seed 002's staged re-initialisation removes what the first stage's linear model
+    leaves of a large initial misalignment (10 deg: phi^2/2 = 52'); from the 0.5 deg a
+    navigation-grade coarse alignment leaves it only threw away the bias/heading
+    correlation: the 10/12-state heading sigma went from 3.4' back to 29' at 270 s."""
+    from sins_align_ros.align.factory import noise_spec
+    from sins_align_ros.align.params import defaults
+    from sins_align_ros.align.stationary import restage_helps
+    lat = 34.0 * DEG
+    nav = noise_spec(defaults())                               # 0.01 deg/h: 2.8' limit
+    mems = noise_spec({**defaults(), 'gyro_bias_dph': 200.0})
+    assert restage_helps(np.array([0.5, 0.5, 10.0]) * DEG, lat, nav)
+    assert not restage_helps(np.array([0.05, 0.05, 0.5]) * DEG, lat, nav)
+    assert not restage_helps(np.array([1.0, 1.0, 30.0]) * DEG, lat, mems)
+    sc, st, b = simulate('static_navigation', seed=1000, seconds=300.0)
+    p = AlignmentPipeline({**SEED002, 'initial_latitude_deg': 34.0,
+                           'fine_filter': 'stationary10', 'use_gnss_position': False})
+    p.start_clock(0.0)
+    out = p.process(b.imu.t, b.imu.dtheta, b.imu.dv)
+    assert p.fine.stage == 1
+    err = attitude_error(quat_to_dcm(out.q[-1]), euler_to_dcm(b.imu.euler[-1]))
+    sig = np.sqrt(np.diag(out.P_phi[-1]))
+    assert out.phase[-1] == ALIGNED
+    assert np.all(np.abs(err) <= 3.0 * sig)
+    assert sig[2] < 4.0 * ARCMIN, sig / ARCMIN                 # limit 2.8' (bias) + noise
+
+
 def test_phases_rows_and_coarse_to_fine_hand_over():
     sc, st, b = simulate('static_navigation', seconds=200.0)
     p = AlignmentPipeline({'initial_latitude_deg': 34.0, 'coarse_duration': 30.0,

@@ -216,16 +216,16 @@ def test_capped_heading_prior_publishes_the_coarse_prior_until_the_filter_learns
     """A 90 deg coarse heading sigma: the filter gets 45 deg (cubature points inside the
     circle), the published heading variance is the coarse one before any epoch and the
     information-form combination 1 / (1/P - 1/cap^2 + 1/sigma0^2) after learning."""
-    from sins_align_ros.align.robust import (HEADING_PRIOR_MAX, RobustAlignment,
-                                             capped_heading_prior)
+    from sins_align_ros.align.aided import HEADING_PRIOR_MAX, capped_heading_prior
+    from sins_align_ros.align.robust import RobustAlignment
     sig = np.array([0.5, 0.5, 90.0]) * DEG
     P0 = np.diag(np.r_[sig ** 2, [0.01] * 3, [(5 * DPH) ** 2] * 3, [(500 * UG) ** 2] * 3])
     P0[0, 2] = P0[2, 0] = 0.5 * sig[0] * sig[2]
-    Pc, var0 = capped_heading_prior(P0)
+    Pc, var0 = capped_heading_prior(P0, 2)
     assert var0 == pytest.approx((90.0 * DEG) ** 2)
     assert Pc[2, 2] == pytest.approx(HEADING_PRIOR_MAX ** 2)
     assert Pc[0, 2] / np.sqrt(Pc[0, 0] * Pc[2, 2]) == pytest.approx(0.5)   # correlation kept
-    assert capped_heading_prior(Pc)[1] is None
+    assert capped_heading_prior(Pc, 2)[1] is None
     eng = RobustAlignment(np.eye(3), np.zeros(3), 0.4, 2.0, 0.0, P0, np.zeros(12),
                           np.eye(3) * 0.05 ** 2, C=100.0)
     np.testing.assert_allclose(np.diag(eng.attitude_cov()), sig ** 2, rtol=1e-12)

@@ -35,6 +35,8 @@ ANGLE_UNKNOWN_VAR = math.pi ** 2 / 3.0
 INFLATION_SPAN = 100.0
 #: largest inflation of a measurement noise variance by the consistency monitor
 MAX_NOISE_SCALE = 100.0
+#: largest initial heading sigma a cubature filter is given, rad (:func:`capped_heading_prior`)
+HEADING_PRIOR_MAX = math.radians(45.0)
 
 
 def cap_angles(P, rows):
@@ -46,6 +48,31 @@ def cap_angles(P, rows):
     s = np.ones(len(P))
     s[rows] = np.sqrt(np.minimum(1.0, ANGLE_UNKNOWN_VAR / np.diag(P)[rows]))
     return P * np.outer(s, s)
+
+
+def capped_heading_prior(P0, k):
+    """Return ``(P0', var0)``: P0 (n, n) with the heading variance (row ``k``) at most the cap's.
+
+    The coarse stage hands over a conservative heading bound, up to 90 deg for a gyro
+    that cannot gyrocompass (``coarse_stage.coarse_sigma``). A cubature filter puts its
+    points at +-sqrt(n) sigma: 90 deg with 12-13 states puts them past +-310 deg, beyond
+    the circle's wrap, where the cubature means and cross-covariances lose their meaning
+    (seed 004's USV, low grade told its sensors: 10 of 10 runs silent-wrong, one 175
+    deg off; seed 000's CKF on a moored ship with a tactical gyro told 10x too good:
+    heading pulled from 0.7 deg to 50 deg off, ending 24 deg off under a 6.4 deg
+    sigma). So the filter is given at most :data:`HEADING_PRIOR_MAX` (45 deg: points
+    within +-162 deg with 13 states) and :meth:`GnssAidedEngine.attitude_cov` puts the
+    coarse prior back in information form. ``var0`` is the heading variance P0 had
+    (rad^2) when it was above the cap, else None (P0 unchanged); the heading row and
+    column are scaled together (correlations kept).
+    """
+    P0 = np.array(P0, dtype=float)
+    var0 = float(P0[k, k])
+    if var0 <= HEADING_PRIOR_MAX ** 2:
+        return P0, None
+    s = np.ones(len(P0))
+    s[k] = HEADING_PRIOR_MAX / math.sqrt(var0)
+    return P0 * np.outer(s, s), var0
 
 
 @dataclass
@@ -123,6 +150,9 @@ class GnssAidedEngine:
     restages = False
     #: the model estimates the accelerometer bias (else bias / g is added to the tilt)
     has_accel_bias = True
+    #: the coarse heading variance (rad^2) when the filter was given a capped one
+    #: (:meth:`cap_heading_prior`), else None
+    heading_prior_var = None
 
     def __init__(self, C_b_n, v_n, lat, lon, h, kf, Qc, R, rows, gate, use_velocity=False,
                  attitude_sums=False, adaptive=False, use_reported_cov=False):
@@ -286,9 +316,38 @@ class GnssAidedEngine:
         """Error-state covariance (n, n)."""
         return self.kf.P
 
+    def cap_heading_prior(self, P0):
+        """Return P0 with its heading variance capped (:func:`capped_heading_prior`).
+
+        Families with cubature filters call this on their P0 before building the filter
+        (``i_phi`` must be set); the coarse variance is kept for :meth:`attitude_cov`.
+        """
+        k = np.arange(len(P0))[self.i_phi][2]
+        P0, self.heading_prior_var = capped_heading_prior(P0, k)
+        return P0
+
     def attitude_cov(self):
-        """Misalignment covariance about ENU (3, 3), rad^2."""
-        return self.kf.P[self.i_phi, self.i_phi]
+        """Misalignment covariance about ENU (3, 3), rad^2, with the coarse heading prior.
+
+        When the filter was started from a capped heading prior
+        (:data:`HEADING_PRIOR_MAX`), the heading variance is ``1 / (1 / P_uu - 1 / cap^2 +
+        1 / sigma_0^2)``: the capped prior's information replaced by the coarse one's,
+        never below the filter's own variance, so it equals the coarse bound until the
+        GNSS has told the filter something and the filter's own variance once it has
+        learned much more than either prior. The heading row and column are scaled
+        together, so the matrix stays positive semi-definite.
+        """
+        P = self.kf.P[self.i_phi, self.i_phi]
+        if self.heading_prior_var is None:
+            return P
+        v = float(P[2, 2])
+        if v <= 0.0:
+            return P
+        learned = max(1.0 / v - 1.0 / HEADING_PRIOR_MAX ** 2, 0.0)
+        v_pub = max(v, 1.0 / (learned + 1.0 / self.heading_prior_var))
+        s = np.ones(3)
+        s[2] = math.sqrt(v_pub / v)
+        return P * np.outer(s, s)
 
     def inflate(self, factor):
         """Inflate the process noise by ``factor`` (up to 1e4x) and the covariance by its root.

@@ -146,7 +146,10 @@ def moving_base(window, cfg, noise, position, gnss, t_now):
                                                     noise.accel_vrw)
     T = float(np.sum(dts))
     info = _info('inertial_frame', moving, rate_sc, tilt_sc, T)
-    V, v_sig, v_src = gnss.velocity_over(tt, cfg['gnss_vel_sigma_mps'], cfg['gnss_pos_sigma_m'])
+    # weighed with the sigmas the filter will use (a receiver's reported covariance for
+    # seed 000's family): a configured 0.1 m against reported, and real, 1 m fixes took
+    # a still base's noisy fix velocities for motion and turned the heading by 6 deg
+    V, v_sig, v_src = gnss.velocity_over(tt, *gnss.sigmas_over(tt, cfg))
     steady = V is not None and steady_velocity(V, v_sig)
     dv_n = None if V is None or steady else V - V[0]
     C = coarse.inertial_frame(dth, dvv, dts, lat, h, dv_n=dv_n)

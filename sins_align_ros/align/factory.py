@@ -54,6 +54,19 @@ def uses_reported_covariance(cfg):
         ff == 'ckf' or (ff == 'asckf' and not cfg['asckf_adaptive']))
 
 
+def gnss_sigma(cfg, name, reported):
+    """1-sigma of GNSS ``name`` (``gnss_pos_sigma_m``, ``gnss_vel_sigma_mps``) the engine uses.
+
+    ``reported``: east/north variances (2,) the messages reported (empty if none). Their
+    median when the engine takes R from the messages (:func:`uses_reported_covariance`),
+    else the parameter. The coarse stage and the motion judgement weigh GNSS velocity
+    with it, and the self-check compares the data with it.
+    """
+    if uses_reported_covariance(cfg) and len(reported):
+        return math.sqrt(float(np.median([np.mean(v) for v in reported])))
+    return cfg[name]
+
+
 def make_engine(cfg, noise, start, has_velocity):
     """Build the engine of ``cfg['fine_filter']`` from a coarse result ``start``.
 

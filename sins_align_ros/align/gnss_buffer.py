@@ -23,6 +23,7 @@ import numpy as np
 from ..nav import earth
 from ..units import DEG
 from .aided import GnssFix
+from .factory import gnss_sigma
 from .gnss_input import reported_variances
 
 #: GNSS history kept for the moving-base coarse alignment, s
@@ -151,6 +152,24 @@ class GnssBuffer:
                          cfg['initial_height_m'])
             src = 'parameters'
         return np.array([la * DEG, lo * DEG, h]), src
+
+    def reported_over(self, t0, t1):
+        """Return the reported east/north variances of the fixes and velocities in ``[t0, t1]``.
+
+        Returns ``(positions, velocities)``, lists of (2,) arrays (messages that
+        reported none are left out).
+        """
+        pos = [f[4] for f in self.fixes if t0 <= f[0] <= t1 and f[4] is not None]
+        vel = [v[2] for v in self.vels if t0 <= v[0] <= t1 and v[2] is not None]
+        return pos, vel
+
+    def sigmas_over(self, tt, cfg):
+        """GNSS velocity and position 1-sigma (m/s, m) the engine of ``cfg`` uses over ``tt``.
+
+        :func:`~.factory.gnss_sigma` with the variances reported around stamps ``tt``.
+        """
+        pos, vel = self.reported_over(tt[0] - 2.0, tt[-1] + 2.0)
+        return gnss_sigma(cfg, 'gnss_vel_sigma_mps', vel), gnss_sigma(cfg, 'gnss_pos_sigma_m', pos)
 
     def velocity_over(self, tt, vel_sigma, pos_sigma):
         """GNSS velocity at stamps ``tt`` (N, 3), its 1-sigma (m/s) and source; or (None, ...).

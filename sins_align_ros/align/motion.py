@@ -36,7 +36,7 @@ def gnss_motion(gnss, cfg, tt):
 
     ``gnss`` is the :class:`~.gnss_buffer.GnssBuffer`, ``cfg`` the parameter values.
     """
-    speed, v_sig = gnss.speed_over(tt, cfg['gnss_vel_sigma_mps'], cfg['gnss_pos_sigma_m'])
+    speed, v_sig = gnss.speed_over(tt, *gnss.sigmas_over(tt, cfg))
     return speed is not None and speed > max(cfg['motion_speed_mps'], 4.0 * v_sig), speed
 
 

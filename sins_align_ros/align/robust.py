@@ -16,19 +16,12 @@ innovation gate with forced acceptances) are :class:`~.aided.GnssAidedEngine`'s.
 
 Where we differ from the seed, and why: the heading prior. Seed 004 starts its filter
 from a 30 deg heading misalignment; our coarse stage hands over a conservative bound,
-up to 90 deg for a gyro that cannot gyrocompass (``coarse_stage.coarse_sigma``), while
-on seed 004's severe sea its inertial-frame heading with GNSS velocity was off by 8.8 /
-15.7 deg RMS (medium / low grade, 20 seeds; at most 26 / 48 deg). The cubature points
-lie at +-sqrt(12) sigma: a 90 deg heading sigma puts them at +-311 deg, past the
-circle's wrap, where the cubature means and cross-covariances lose their meaning, and
-the filter collapsed its tilt sigma while the tilt error grew (low grade told its sensors:
-10 of 10 runs silent-wrong, one ending 175 deg off). The filter is therefore given at most
-:data:`HEADING_PRIOR_MAX` (45 deg: points within +-156 deg) and the published heading
-variance puts the coarse prior back in information form (:meth:`RobustAlignment.
-attitude_cov`): ``1 / (1 / P_uu - 1 / cap^2 + 1 / sigma_0^2)``, so it equals the
-coarse bound until the GNSS velocity has told the filter something, and the filter's
-own variance once it has learned much more than either prior
-(``bench/results/severe_sea_presets.md``).
+up to 90 deg for a gyro that cannot gyrocompass, while on seed 004's severe sea its
+inertial-frame heading with GNSS velocity was off by 8.8 / 15.7 deg RMS (medium / low
+grade, 20 seeds; at most 26 / 48 deg). The filter is given at most 45 deg and the
+published heading variance puts the coarse prior back in information form
+(:func:`~.aided.capped_heading_prior`, shared with seed 000's family;
+``bench/results/severe_sea_presets.md``).
 """
 import math
 
@@ -39,12 +32,9 @@ from ..filters.vbch import VBCH
 from ..filters.vbckf import VBCKF
 from ..models import large_misalignment as lm
 from ..nav.frames import orthonormalize
-from ..units import DEG, DPH, UG
+from ..units import DPH, UG
 from .aided import GnssAidedEngine
 from .gnss_gate import GnssGate
-
-#: largest initial heading sigma the cubature filter is given, rad (module docstring)
-HEADING_PRIOR_MAX = 45.0 * DEG
 
 
 def model_noise(sigma_phi, sigma_v, noise, q_drift):
@@ -61,23 +51,6 @@ def model_noise(sigma_phi, sigma_v, noise, q_drift):
     Qc = np.r_[[noise.gyro_arw ** 2] * 3, [noise.accel_vrw ** 2] * 3, [q_drift] * 3,
                [0.0] * 3]
     return P0, Qc
-
-
-def capped_heading_prior(P0):
-    """Return ``(P0', var0)``: P0 (12, 12) with the heading variance at most the cap's.
-
-    ``var0`` is the heading variance P0 had (rad^2) when it was above
-    :data:`HEADING_PRIOR_MAX` squared, else None (P0 unchanged); the heading row and
-    column are scaled together (correlations kept).
-    """
-    P0 = np.array(P0, dtype=float)
-    k = lm.I_PHI.start + 2          # the up (heading) misalignment
-    var0 = float(P0[k, k])
-    if var0 <= HEADING_PRIOR_MAX ** 2:
-        return P0, None
-    s = np.ones(len(P0))
-    s[k] = HEADING_PRIOR_MAX / math.sqrt(var0)
-    return P0 * np.outer(s, s), var0
 
 
 class RobustAlignment(GnssAidedEngine):
@@ -107,7 +80,7 @@ class RobustAlignment(GnssAidedEngine):
     def __init__(self, C_b_n, v_n, lat, lon, h, P0, Qc, R, robust=True, rho=0.98,
                  n_iter=20, C=1.5, dof=None, gate_probability=None, gate_max_rejects=10):
         Q = np.diag(np.asarray(Qc, dtype=float))
-        P0, self.heading_prior_var = capped_heading_prior(P0)
+        P0 = self.cap_heading_prior(P0)
         if robust:
             kf = VBCH(np.zeros(lm.N_STATES), P0, Q, R, lm.L_attitude(), rho=rho,
                       n_iter=n_iter, C=C, dof=dof)
@@ -116,27 +89,6 @@ class RobustAlignment(GnssAidedEngine):
         super().__init__(C_b_n, v_n, lat, lon, h, kf, Qc, R, rows=[3, 4, 5],
                          gate=GnssGate(gate_probability, gate_max_rejects, sizes=(3,)),
                          use_velocity=True, attitude_sums=True)
-
-    def attitude_cov(self):
-        """Misalignment covariance about ENU (3, 3), rad^2, with the coarse heading prior.
-
-        When the filter was started from a capped heading prior
-        (:data:`HEADING_PRIOR_MAX`), the heading variance is ``1 / (1 / P_uu - 1 / cap^2 +
-        1 / sigma_0^2)`` (the capped prior's information replaced by the coarse one's,
-        never below the filter's own variance); the heading row and column are scaled
-        together, so the matrix stays positive semi-definite.
-        """
-        P = super().attitude_cov()
-        if self.heading_prior_var is None:
-            return P
-        v = float(P[2, 2])
-        if v <= 0.0:
-            return P
-        learned = max(1.0 / v - 1.0 / HEADING_PRIOR_MAX ** 2, 0.0)
-        v_pub = max(v, 1.0 / (learned + 1.0 / self.heading_prior_var))
-        s = np.ones(3)
-        s[2] = math.sqrt(v_pub / v)
-        return P * np.outer(s, s)
 
     def _transition(self):
         s = self.sums

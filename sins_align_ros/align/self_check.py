@@ -65,7 +65,7 @@ import numpy as np
 from ..nav import earth
 from ..nav.coarse import detect_motion, velocity_integral_b0
 from ..units import DPH, DPSH, UG
-from .factory import uses_reported_covariance
+from .factory import gnss_sigma, uses_reported_covariance
 
 #: a noise estimate widens the configured density when it is this many times larger
 NOISE_RATIO = 2.0
@@ -248,8 +248,7 @@ def _gnss_sigma(out, cfg, name, sigma, reported, unit):
     """Widen GNSS sigma ``name`` to ``sigma`` when the data show more than the model."""
     out.figures[name.replace('_sigma', '_noise')] = sigma
     use_reported = uses_reported_covariance(cfg) and len(reported) > 0
-    model = (math.sqrt(float(np.median([np.mean(v) for v in reported]))) if use_reported
-             else cfg[name])
+    model = gnss_sigma(cfg, name, reported)
     if not sigma > NOISE_RATIO * model:
         return
     out.widened[name] = sigma
