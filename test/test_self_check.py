@@ -54,6 +54,18 @@ def test_white_noise_above_the_model_widens_it_and_the_grade_biases():
     assert any('gyro_arw_dpsh widened' in s for s in c.findings)
 
 
+def test_a_navigation_class_gyro_told_too_good_gets_a_navigation_class_bias():
+    """Gyro noise of the navigation class (0.001 deg/sqrt(h), told 0.0001): the bias is
+    raised to 15x the noise (such gyros have 2-10x), not the 30x of lower grades, which
+    made a heading sigma 3.3x its error; still a bias of the noise's class, not the
+    0.001 deg/h told."""
+    cfg = {**DEFAULTS, 'gyro_arw_dpsh': 0.0001, 'gyro_bias_dph': 0.001}
+    c = check(still(arw=0.001 * DPSH), POS, cfg)
+    assert c.widened['gyro_arw_dpsh'] == pytest.approx(0.001, rel=0.1)
+    assert c.widened['gyro_bias_dph'] == pytest.approx(15 * 0.001, rel=0.1)
+    assert c.heading_observable
+
+
 def test_sway_and_quantization_are_not_taken_for_white_noise():
     dt = 0.01
     t, dth, dv, dts = still(sway=0.02)                  # 0.1 Hz roll of 1 deg

@@ -28,7 +28,8 @@ the finding is reported:
   sigma to the bound. On a moving base this check is skipped (said so).
 * **Grade**: noise found larger than configured means the IMU is not of the configured
   grade, and its biases are then larger too; the bias sigmas are raised to at least
-  :data:`GYRO_BIAS_PER_ARW` / :data:`ACCEL_BIAS_PER_VRW` times the measured noise, and
+  :data:`GYRO_BIAS_PER_ARW` (:data:`GYRO_BIAS_PER_ARW_NAVIGATION` for a gyro of the
+  navigation class) / :data:`ACCEL_BIAS_PER_VRW` times the measured noise, and
   the gyro bias instability to :data:`GYRO_INSTABILITY_PER_ARW` times it (near
   the upper end of the bias-to-noise ratios of our sensor-grade presets, which span
   10-67 deg/h per deg/sqrt(h) and 6-14 ug per ug/sqrt(Hz)). At rest a horizontal
@@ -78,6 +79,11 @@ RATE_TOL = 0.05 * DPH
 #: typical bias-to-noise ratios: gyro deg/h per deg/sqrt(h), accelerometer ug per ug/sqrt(Hz)
 GYRO_BIAS_PER_ARW = 30.0
 ACCEL_BIAS_PER_VRW = 14.0
+#: the gyro ratio at rest for a gyro whose noise is of the navigation class (at most the
+#: first edge of :data:`ACCEL_BIAS_BY_GYRO_NOISE`, 0.003 deg/sqrt(h)): such gyros have
+#: biases of 2-10x their noise (our navigation, marine and USV-high presets 6-10); 30x
+#: made the heading sigma of a navigation-grade IMU told 10x too good 3.3x its error
+GYRO_BIAS_PER_ARW_NAVIGATION = 15.0
 #: the same on a moving base (the upper end of our presets' 10-67)
 GYRO_BIAS_PER_ARW_MOVING = 67.0
 #: the varying part of the gyro bias (gyro_bias_instability_dph) per deg/sqrt(h) of noise
@@ -328,7 +334,9 @@ def _noise(out, cfg, arw, vrw, moving):
         arw_cfg = arw
         # on a moving base a wide bias prior costs little (GNSS aiding observes the bias
         # through the motion), so take the upper end of the presets' ratios there
-        per_arw = GYRO_BIAS_PER_ARW_MOVING if moving else GYRO_BIAS_PER_ARW
+        per_arw = GYRO_BIAS_PER_ARW_MOVING if moving else (
+            GYRO_BIAS_PER_ARW_NAVIGATION if arw / DPSH <= ACCEL_BIAS_BY_GYRO_NOISE[0][0]
+            else GYRO_BIAS_PER_ARW)
         _raise(out, cfg, 'gyro_bias_dph', per_arw * arw / DPSH, 'deg/h')
         _raise(out, cfg, 'gyro_bias_instability_dph', GYRO_INSTABILITY_PER_ARW * arw / DPSH,
                'deg/h')
