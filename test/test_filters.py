@@ -161,6 +161,27 @@ def test_sage_husa_tracks_a_wrong_measurement_noise():
     assert results[True].R[0, 0] > 0.5 * r_true and results[True].divergence_flags > 0
 
 
+def test_sage_husa_counts_the_configured_noise_as_a_memory_of_epochs():
+    """The seed's weight d_1 = 1 replaces R0 by the first squared innovation; with R0
+    worth 1/(1-b) epochs one small innovation moves R by about 5 %, and the estimate
+    still converges to the real noise (here 10x R0) over the memory."""
+    from types import SimpleNamespace
+    small = SimpleNamespace(y=np.array([0.01]), K=np.zeros((1, 1)), eta=np.zeros((1, 1)),
+                            Pzz=np.eye(1) * 1e-6)
+    seed = SageHusa(Q0=np.eye(1), R0=np.eye(1), b=0.97, gate=False, adapt_q=False,
+                    prior_epochs=0)
+    ours = SageHusa(Q0=np.eye(1), R0=np.eye(1), b=0.97, gate=False, adapt_q=False)
+    assert seed.update(small)[1][0, 0] == pytest.approx(1e-3)    # the floor: R0 gone
+    d = 0.03 / (1.0 - 0.97 ** (1 + 1 / 0.03))                     # 0.046
+    assert ours.update(small)[1][0, 0] == pytest.approx(1.0 - d + d * 1e-4)
+    rng = np.random.default_rng(8)
+    for _ in range(400):
+        y = rng.normal(0.0, np.sqrt(10.0), 1)
+        ours.update(SimpleNamespace(y=y, K=np.zeros((1, 1)), eta=np.zeros((1, 1)),
+                                    Pzz=np.eye(1) * 10.0))
+    assert ours.R[0, 0] == pytest.approx(10.0, rel=0.35)
+
+
 def test_asckf_without_improvements_is_the_square_root_ckf():
     from sins_align_ros.filters.asckf import ASCKF
     zs, Q, R = scenario(seed=7)

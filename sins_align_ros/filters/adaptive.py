@@ -89,10 +89,19 @@ class SageHusa:
         Estimate Q as well (eq. 39). Q and R are not separately identifiable from
         the innovations of a weakly observable state; adapting both lets Q absorb
         measurement noise.
+    prior_epochs : float or None
+        Epochs of evidence the initial Q0 and R0 count as (not in the seed): the weight
+        of epoch ``k`` is ``d_k = (1-b)/(1-b^(k + prior_epochs))``. The seed's
+        ``d_k = (1-b)/(1-b^k)`` (``prior_epochs=0``) gives the first innovation weight 1,
+        replacing the configured R by one squared innovation: on a moored ship (tactical
+        IMU, seed 1001 of the integrity matrix) the GNSS velocity variance fell 10x at
+        the second epoch, the filter pulled the heading 147 deg off and GNSS was rejected
+        until alignment restarted. Default: the estimator's memory, ``1/(1-b)``, so the
+        configured noise is worth as much as a memory of data.
     """
 
     def __init__(self, Q0, R0, b=0.97, gate=True, adapt_q=True, r_ceiling=np.inf,
-                 r_when_identifiable=False, clip=CLIP):
+                 r_when_identifiable=False, clip=CLIP, prior_epochs=None):
         self.gate = bool(gate)
         self.r_when_identifiable = bool(r_when_identifiable)
         self.adapt_q = bool(adapt_q)
@@ -109,6 +118,7 @@ class SageHusa:
         self._r_lo = 1e-3 * np.diag(self.R).copy()
         self._r_hi = float(r_ceiling) * np.diag(self.R).copy()
         self.b = float(b)
+        self.prior_epochs = 1.0 / (1.0 - self.b) if prior_epochs is None else float(prior_epochs)
         self.k = 0
         self.divergence_flags = 0
 
@@ -122,7 +132,7 @@ class SageHusa:
         of R is estimated. Returns ``(Q, R)``.
         """
         self.k += 1
-        d = (1.0 - self.b) / (1.0 - self.b ** self.k)
+        d = (1.0 - self.b) / (1.0 - self.b ** (self.k + self.prior_epochs))
         y, K, eta = upd.y, upd.K, upd.eta
         if self.adapt_q:
             Ky = K @ y

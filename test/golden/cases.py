@@ -154,7 +154,7 @@ CASES = (
          args=('--duration', '300'), every=100, expect=('coarse', 'fine', 'aligned')),
     Case('fog_mems_car_asckf', 'asckf', 'fog', 'fog_mems car recording (100 s) through '
          'AlignmentPipeline + feed_arrays, GNSS-like position and velocity',
-         params=dict(FOG), every=25),
+         params=dict(FOG), every=25, expect=('coarse', 'fine')),
 )
 BY_NAME = {c.name: c for c in CASES}
 
