@@ -283,6 +283,27 @@ def test_an_aided_filter_started_at_rest_with_a_mems_gyro_claims_no_heading_unti
     assert np.all(np.abs(e) <= 3.0 * out.sigma[-1]) and out.sigma[-1, 2] < np.radians(5.0)
 
 
+def test_an_aided_filter_at_rest_with_the_heading_unknown_claims_no_tilt_below_the_bias():
+    """With the heading unknown the filter cannot know how a body-frame accelerometer
+    bias lies against the horizontal: at rest tilt and bias stay one (a / g). VBCH on a
+    still MEMS IMU with defaults reported 14' of tilt under the 17' bound while 50' off
+    (its wandering heading had "separated" them)."""
+    from sins_align_ros.eval.scenarios import named, simulate as simulate_named
+    sc = named('static_navigation@mems', 180.0)
+    data = simulate_named(sc, 1002)
+    p = AlignmentPipeline({'fine_filter': 'vbch', 'initial_latitude_deg': 34.0,
+                           'initial_longitude_deg': 108.0, 'initial_height_m': 50.0})
+    p.start_clock(0.0)
+    out = feed_arrays(p, data.imu, data.gnss)
+    fine = np.isin(out.phase, ('fine', 'aligned'))
+    assert fine.sum() > 10000
+    assert np.allclose(out.sigma[fine, 2], np.pi / np.sqrt(3.0))        # heading unknown
+    a_g = p.cfg['accel_bias_ug'] * 1e-6 * 9.80665 / 9.797               # widened: ~5000 ug
+    assert a_g > 15.0 * ARCMIN
+    assert np.all(out.P_phi[fine, 0, 0] >= 0.99 * a_g ** 2)
+    assert np.all(out.P_phi[fine, 1, 1] >= 0.99 * a_g ** 2)
+
+
 def test_invalid_parameters_are_refused():
     with pytest.raises(ValueError, match='fine_filter'):
         AlignmentPipeline({'fine_filter': 'magic'})

@@ -16,7 +16,12 @@ have converged (once) and the roll/pitch and heading 1-sigma must be within
 ``aligned_max_tilt_sigma_deg`` / ``aligned_max_heading_sigma_deg``; when either grows
 past its bound the phase goes back to ``fine`` with the reason. A heading the sensors
 cannot observe (``heading_known`` False: a gyro that cannot see Earth rate at rest) is
-published with the variance of an unknown angle, :data:`HEADING_UNKNOWN_VAR`.
+published with the variance of an unknown angle, :data:`HEADING_UNKNOWN_VAR`, and the
+roll/pitch variances are then at least ``tilt_bound``: with the heading unknown the
+filter cannot know how a body-frame accelerometer bias lies against the horizontal, so at
+rest tilt and bias stay one (seed 002 eq. 15: a / g), however much its heading wanders
+(a GNSS-aided VBCH on a still MEMS IMU reported 14' of tilt under a 17' bias bound while
+50' off, the wandering heading having "separated" them).
 
 A filter failure (:class:`~.gnss_gate.FilterDiverged`) ends the stage: the methods
 return its reason and the pipeline restarts from coarse alignment.
@@ -51,9 +56,11 @@ class FineStage:
     ``clock`` the pipeline's :class:`Clock` (its ``t_last`` is advanced here).
     """
 
-    def __init__(self, engine, floor, clock, cfg, heading_known=True):
+    def __init__(self, engine, floor, clock, cfg, heading_known=True, tilt_bound=0.0):
         self.engine = engine
         self.heading_known = bool(heading_known)
+        #: least roll/pitch variance (rad^2) while the heading is unknown
+        self.tilt_bound = float(tilt_bound)
         self.max_tilt = math.radians(cfg['aligned_max_tilt_sigma_deg'])
         self.max_heading = math.radians(cfg['aligned_max_heading_sigma_deg'])
         #: the last stage has converged (latched): from then on the bounds decide
@@ -84,6 +91,9 @@ class FineStage:
                 P = P.copy()
                 P[2, :2] = P[:2, 2] = 0.0
                 P[2, 2] = HEADING_UNKNOWN_VAR
+                # raising diagonal entries keeps P positive semi-definite
+                for k in (0, 1):
+                    P[k, k] = max(P[k, k], self.tilt_bound)
             elif np.any(np.diag(P) > ANGLE_UNKNOWN_VAR):
                 P = cap_angles(P, np.arange(3))
             self._att_cov = P

@@ -21,6 +21,7 @@ A filter failure restarts the alignment from coarse, keeping the GNSS history.
 """
 import numpy as np
 
+from ..models.stationary import unobservable_variance
 from . import coarse_stage, motion, self_check
 from . import params as prm
 from .factory import is_aided, make_engine, noise_spec
@@ -319,7 +320,9 @@ class AlignmentPipeline:
         self.warnings.extend(warnings)
         c = self.check
         heading_known = c is None or c.heading_observable or (self.aided and not c.at_rest)
-        self.fine = FineStage(engine, floor, self.clock, self.cfg, heading_known)
+        tilt_bound = 0.0 if heading_known else unobservable_variance(start.position[0],
+                                                                     self.noise)[0]
+        self.fine = FineStage(engine, floor, self.clock, self.cfg, heading_known, tilt_bound)
 
     def _fill_last(self, out):
         """Put the coarse result into the last row of a coarse block."""
