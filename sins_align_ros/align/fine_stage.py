@@ -53,7 +53,8 @@ class FineStage:
     """One engine from the end of coarse alignment on; see the module docstring.
 
     ``floor`` (3,) variances (rad^2) added to the engine's attitude covariance;
-    ``clock`` the pipeline's :class:`Clock` (its ``t_last`` is advanced here).
+    ``clock`` the pipeline's :class:`Clock` (its ``t_last`` is advanced here);
+    ``tilt_bound`` the least roll/pitch variance (rad^2) while the heading is unknown.
     """
 
     def __init__(self, engine, floor, clock, cfg, heading_known=True, tilt_bound=0.0):

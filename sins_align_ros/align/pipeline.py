@@ -320,9 +320,8 @@ class AlignmentPipeline:
         self.warnings.extend(warnings)
         c = self.check
         heading_known = c is None or c.heading_observable or (self.aided and not c.at_rest)
-        tilt_bound = 0.0 if heading_known else unobservable_variance(start.position[0],
-                                                                     self.noise)[0]
-        self.fine = FineStage(engine, floor, self.clock, self.cfg, heading_known, tilt_bound)
+        self.fine = FineStage(engine, floor, self.clock, self.cfg, heading_known,
+                              unobservable_variance(start.position[0], self.noise)[0])
 
     def _fill_last(self, out):
         """Put the coarse result into the last row of a coarse block."""

@@ -233,20 +233,19 @@ def gnss_check(out, gnss, t0, t1, cfg):
 
     ``gnss``: the :class:`~.gnss_buffer.GnssBuffer` (its ``fixes`` and ``vels``).
     """
+    pos_reported, vel_reported = gnss.reported_over(t0, t1)
     fixes = [f for f in gnss.fixes if t0 <= f[0] <= t1]
     if len(fixes) >= 10 and _regular([f[0] for f in fixes]):
         lat, lon, h = (np.array([f[i] for f in fixes]) for i in (1, 2, 3))
         enu = earth.local_offset_m(lat[0], lon[0], h[0], lat, lon, h)
-        reported = [f[4] for f in fixes if f[4] is not None]
         _gnss_sigma(out, cfg, 'gnss_pos_sigma_m', robust_difference_sigma(enu[:, :2]),
-                    reported, 'm')
+                    pos_reported, 'm')
         _gnss_sigma(out, cfg, 'gnss_height_sigma_m', robust_difference_sigma(enu[:, 2:]),
                     [], 'm')
     vels = [v for v in gnss.vels if t0 <= v[0] <= t1]
     if len(vels) >= 10 and _regular([v[0] for v in vels]):
         V = np.array([v[1][:2] for v in vels])
-        reported = [v[2] for v in vels if v[2] is not None]
-        _gnss_sigma(out, cfg, 'gnss_vel_sigma_mps', robust_difference_sigma(V), reported,
+        _gnss_sigma(out, cfg, 'gnss_vel_sigma_mps', robust_difference_sigma(V), vel_reported,
                     'm/s')
 
 
