@@ -47,7 +47,9 @@ class _Watcher:
         self.truth = {}
         self.truth_nav = {}
         self.odom = None
-        self.att = None
+        #: published attitudes by stamp (ns): the report takes the last one the truth also has
+        self.att = {}
+        self.n_att = 0
         self.status = None
         self.phases = []
         self.node.create_subscription(Odometry, 'sim/truth', self._on_truth, qos)
@@ -71,8 +73,11 @@ class _Watcher:
     def _on_att(self, m):
         if m.orientation_covariance[0] >= 0.0:
             q = m.orientation
-            self.att = (stamp_to_ns(m.header.stamp), np.array([q.x, q.y, q.z, q.w]),
-                        np.array(m.orientation_covariance))
+            self.n_att += 1
+            self.att[stamp_to_ns(m.header.stamp)] = (np.array([q.x, q.y, q.z, q.w]),
+                                                     np.array(m.orientation_covariance))
+            if len(self.att) > 20000:
+                self.att.pop(next(iter(self.att)))
 
     def _on_diag(self, m):
         for st in m.status:
@@ -118,16 +123,23 @@ def _report_navigation(w, sc):
 
 
 def _report(w, sc, fine_time, fine_filter):
-    if w.att is None:
+    if not w.att:
         print('\nNo attitude was published on imu/data: the alignment did not finish coarse '
               'alignment (see the diagnostics above).')
         return 1
-    t_ns, q, cov = w.att
-    if not w.truth:
-        print('\nNo truth received from the simulator.')
+    # the truth comes at 10 Hz and a swaying ship turns degrees a second: compare at a stamp
+    # both have, never at the nearest truth (50 ms apart can be 0.2 deg of roll)
+    common = set(w.att) & set(w.truth)
+    if not common:
+        print('\nNo published attitude has the stamp of a received truth message.')
         return 1
-    tt = min(w.truth, key=lambda k: abs(k - t_ns))
-    err = attitude_error(quat_to_dcm(q), quat_to_dcm(w.truth[tt]))
+    t_ns = max(common)
+    q, cov = w.att[t_ns]
+    late = (max(w.att) - t_ns) * 1e-9
+    if late > 0.0:
+        print(f'\n(the last attitude with a truth message is {late:.2f} s before the last '
+              f'one published)')
+    err = attitude_error(quat_to_dcm(q), quat_to_dcm(w.truth[t_ns]))
     e = np.degrees(quat_to_euler(q))
     sig = np.sqrt(np.clip(np.diag(cov.reshape(3, 3)), 0, None))
     band = alignment_limits(sc, fine_time, fine_filter, t_att=sc.duration)
@@ -203,9 +215,14 @@ def main(argv=None):
                                 ('sigma_roll_deg', 'sigma_pitch_deg', 'sigma_yaw_deg') if k in s)
                 print(f"  t = {float(s.get('elapsed_s', 0)):7.1f} s  phase {s.get('phase'):8s} "
                       f"1-sigma {sig or '-'}  IMU {s.get('imu_count')}", flush=True)
-        end = time.monotonic() + 2.0
-        while time.monotonic() < end:
+        # the node may still be working through its queue: wait until the attitudes stop
+        # (1 s without one), at most 30 s
+        end = time.monotonic() + 30.0
+        quiet_since, n_att = time.monotonic(), watcher.n_att
+        while time.monotonic() < end and time.monotonic() - quiet_since < 1.0:
             ex.spin_once(timeout_sec=0.1)
+            if watcher.n_att != n_att:
+                quiet_since, n_att = time.monotonic(), watcher.n_att
         code = _report(watcher, sc, args.duration - args.coarse, args.filter)
         if args.filter in NAV_FILTERS:
             _report_navigation(watcher, sc)
