@@ -161,6 +161,7 @@ class MovingBaseAlignment(GnssAidedEngine):
         if self.n not in (la.N_STATES, la.N_STATES_ACCEL) or len(Qc) != self.n:
             raise ValueError(f'P0 ({self.n}) and Qc ({len(Qc)}) must have 10 or 13 states')
         self.has_accel_bias = self.n == la.N_STATES_ACCEL
+        self.i_nab = I_NAB if self.has_accel_bias else None
         P0 = self.cap_heading_prior(P0)
         alpha = np.asarray(alpha, dtype=float)
         if len(alpha) < self.n:

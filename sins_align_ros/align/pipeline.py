@@ -320,6 +320,8 @@ class AlignmentPipeline:
         self.warnings.extend(warnings)
         c = self.check
         heading_known = c is None or c.heading_observable or (self.aided and not c.at_rest)
+        if self.aided and not heading_known:
+            engine.hold_level_accel_bias()
         self.fine = FineStage(engine, floor, self.clock, self.cfg, heading_known,
                               unobservable_variance(start.position[0], self.noise)[0])
 
