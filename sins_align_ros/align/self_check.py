@@ -99,11 +99,6 @@ ACCEL_VRW_BY_GYRO_NOISE = ((0.003, 10.0), (0.15, 80.0), (0.6, 200.0), (math.inf,
 VELOCITY_CHUNK_S = 10.0
 #: gyro-accelerometer correlation of sample differences, in 1/sqrt(N), that means motion
 COHERENCE_SIGMAS = 4.5
-#: fixes in the running median of :func:`motion_free_velocity_sigma`
-MEDIAN_SPAN = 7
-#: median |residual| from that running median, after a cubic, over the noise's 0.6745
-#: sigma (white noise, 60 fixes, 2000 simulated windows: 0.82 +- 0.18)
-MEDIAN_RESIDUAL_GAIN = 0.82
 #: order of the differences of :func:`difference_density`
 DIFF_ORDER = 3
 #: a gyro bias sigma above this fraction of the horizontal Earth rate: no heading at rest
@@ -273,9 +268,10 @@ def motion_free_velocity_sigma(t_v, V, window):
     rotation's level part comes from that gravity integral; its heading is the weighted
     median of the angles between the horizontal third differences of ``u`` and of ``V``
     (weights ``|du|^2``: an outlier's rows are a few votes). The velocity less
-    the rotated ``u``, less a least-squares cubic, is then the receiver's noise, and
-    its departure from a running median of :data:`MEDIAN_SPAN` fixes (each outlier
-    spoiling only itself), scaled by :data:`MEDIAN_RESIDUAL_GAIN`, gives it.
+    the rotated ``u`` is then the receiver's noise on a smooth curve, and the median of
+    its second differences gives the noise (a line cancels in them; a running median
+    instead read a car speeding up as no noise at all), taken again without those
+    beyond 3 sigma and their neighbours (the three an outlier spoils).
     ``t_v`` (N,) stamps and ``V`` (N, 3) ENU velocities of the fixes; ``window`` the
     coarse window ``(t, dtheta, dv, dt)``. Root mean over the east and north axes; NaN
     when fewer than 10 fixes lie in the window.
@@ -299,14 +295,18 @@ def motion_free_velocity_sigma(t_v, V, window):
     psi = float(ang[order][np.searchsorted(cw, 0.5 * cw[-1])])
     c, s_ = math.cos(psi), math.sin(psi)
     e = V_h - U_h @ np.array([[c, s_], [-s_, c]])
-    A = np.vander((t - t[0]) / max(float(t[-1] - t[0]), 1e-9), 4)
-    e = e - A @ np.linalg.lstsq(A, e, rcond=None)[0]
-    k = MEDIAN_SPAN // 2
-    padded = np.pad(e, ((k, k), (0, 0)), mode='edge')
-    med = np.median(np.lib.stride_tricks.sliding_window_view(padded, MEDIAN_SPAN, axis=0),
-                    axis=-1)
-    r = (e - med)[k:-k]
-    s = np.median(np.abs(r), axis=0) / (0.6745 * MEDIAN_RESIDUAL_GAIN)
+    # what is left is the receiver's noise on a smooth curve: its second differences
+    # (variance 6 sigma^2 for white noise; a line cancels, a smooth curve nearly)
+    # (variance 6 sigma^2 for white noise; a line cancels, a smooth curve nearly); an
+    # outlier makes three of them large: those beyond 3 sigma and their neighbours are
+    # dropped and the median taken again
+    d = np.diff(e, n=2, axis=0)
+    s = np.median(np.abs(d), axis=0) / 0.6745
+    big = np.any(np.abs(d) > 3.0 * s, axis=1)
+    spoilt = big | np.r_[big[1:], False] | np.r_[False, big[:-1]]
+    if np.count_nonzero(~spoilt) >= 10:
+        s = np.median(np.abs(d[~spoilt]), axis=0) / 0.6745
+    s = s / math.sqrt(6.0)
     return float(np.sqrt(np.mean(s * s)))
 
 
