@@ -324,18 +324,13 @@ class GnssAidedEngine:
     def hold_level_accel_bias(self):
         """Stop estimating the body x/y accelerometer bias: at rest with the heading unknown.
 
-        At rest a horizontal accelerometer bias and a tilt are one (seed 002 eq. 15); with
-        the heading known the filter keeps them so (its estimate of the bias stays at the
-        prior), but a heading the gyro cannot find wanders through the filter's updates,
-        and each wander turns the bias's projection against the tilt: the filter takes the
-        wander for a rotation of the base and "separates" them. On a still MEMS IMU the
-        GNSS-aided filters ended with a north tilt of 24-32' RMS (1-3 runs in 10 beyond
-        3 sigma for VBCKF/VBCH) against the 6' that the bias leaves and the stationary
-        filters reach. Scaling those two states' prior to :data:`ACCEL_BIAS_HOLD` (the
-        state keeps its place, the filter its dimension) leaves the bias in the tilt,
-        which the fine stage then publishes at no less than ``(a / g)^2``
-        (:class:`~.fine_stage.FineStage` ``tilt_bound``). The vertical bias stays
-        estimated (the vertical velocity separates it). Call before the first epoch.
+        At rest a level accelerometer bias and a tilt are one (seed 002 eq. 15); a filter
+        that estimates the bias takes its wandering unknown heading for a rotation of the
+        base and "separates" them wrongly (still MEMS IMU: north tilt 24-32' RMS against
+        the bias's 6'; docs/filters.md). The two states' prior is scaled to
+        :data:`ACCEL_BIAS_HOLD` and their process noise zeroed, which leaves the bias in
+        the tilt, published at no less than ``(a / g)^2`` (``FineStage.tilt_bound``).
+        Call before the first epoch.
         """
         if self.i_nab is None:
             return
