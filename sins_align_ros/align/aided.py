@@ -122,7 +122,52 @@ class IntervalSums:
             self.C_sum += C * dt
 
 
-class GnssAidedEngine:
+class PriorShaping:
+    """What an engine does to its filter's prior before the first epoch.
+
+    A mixin of :class:`GnssAidedEngine`, whose ``kf``, ``i_phi``, ``Qc`` and process-noise
+    bookkeeping (``_Qc0``, ``_held``) it uses.
+    """
+
+    #: accelerometer-bias slice (body x, y, z) of the state, None without one
+    i_nab = None
+    #: the coarse heading variance (rad^2) when the filter was given a capped one
+    #: (:meth:`cap_heading_prior`), else None
+    heading_prior_var = None
+
+    def hold_level_accel_bias(self):
+        """Stop estimating the body x/y accelerometer bias: at rest with the heading unknown.
+
+        At rest a level accelerometer bias and a tilt are one (seed 002 eq. 15); a filter
+        that estimates the bias takes its wandering unknown heading for a rotation of the
+        base and "separates" them wrongly (still MEMS IMU: north tilt 24-32' RMS against
+        the bias's 6'; docs/filters.md). The two states' prior is scaled to
+        :data:`ACCEL_BIAS_HOLD` and their process noise zeroed, which leaves the bias in
+        the tilt, published at no less than ``(a / g)^2`` (``FineStage.tilt_bound``).
+        Call before the first epoch.
+        """
+        if self.i_nab is None:
+            return
+        k = np.arange(len(self.kf.x))[self.i_nab][:2]
+        s = np.ones(len(self.kf.x))
+        s[k] = ACCEL_BIAS_HOLD / np.sqrt(np.maximum(np.diag(self.kf.P)[k], ACCEL_BIAS_HOLD ** 2))
+        self.kf.transform(np.diag(s))
+        self.Qc = self.Qc.copy()
+        self.Qc[k] = self._Qc0[k] = 0.0
+        self._held[k] = True
+
+    def cap_heading_prior(self, P0):
+        """Return P0 with its heading variance capped (:func:`capped_heading_prior`).
+
+        Families with cubature filters call this on their P0 before building the filter
+        (``i_phi`` must be set); the coarse variance is kept for :meth:`attitude_cov`.
+        """
+        k = np.arange(len(P0))[self.i_phi][2]
+        P0, self.heading_prior_var = capped_heading_prior(P0, k)
+        return P0
+
+
+class GnssAidedEngine(PriorShaping):
     """Mechanization + error-state filter at GNSS epochs; see the module docstring.
 
     Parameters
@@ -147,17 +192,12 @@ class GnssAidedEngine:
 
     #: misalignment, velocity-error and gyro-drift slices of the state (set by families)
     i_phi = i_v = i_eps = None
-    #: accelerometer-bias slice (body x, y, z) of the state, None without one
-    i_nab = None
     #: the engine keeps navigating after alignment (``~/odom``, navigation CSV columns)
     navigates = False
     #: the aided filters run one stage (only the stationary filter is re-initialised)
     restages = False
     #: the model estimates the accelerometer bias (else bias / g is added to the tilt)
     has_accel_bias = True
-    #: the coarse heading variance (rad^2) when the filter was given a capped one
-    #: (:meth:`cap_heading_prior`), else None
-    heading_prior_var = None
 
     def __init__(self, C_b_n, v_n, lat, lon, h, kf, Qc, R, rows, gate, use_velocity=False,
                  attitude_sums=False, adaptive=False, use_reported_cov=False):
@@ -320,37 +360,6 @@ class GnssAidedEngine:
     def P(self):
         """Error-state covariance (n, n)."""
         return self.kf.P
-
-    def hold_level_accel_bias(self):
-        """Stop estimating the body x/y accelerometer bias: at rest with the heading unknown.
-
-        At rest a level accelerometer bias and a tilt are one (seed 002 eq. 15); a filter
-        that estimates the bias takes its wandering unknown heading for a rotation of the
-        base and "separates" them wrongly (still MEMS IMU: north tilt 24-32' RMS against
-        the bias's 6'; docs/filters.md). The two states' prior is scaled to
-        :data:`ACCEL_BIAS_HOLD` and their process noise zeroed, which leaves the bias in
-        the tilt, published at no less than ``(a / g)^2`` (``FineStage.tilt_bound``).
-        Call before the first epoch.
-        """
-        if self.i_nab is None:
-            return
-        k = np.arange(len(self.kf.x))[self.i_nab][:2]
-        s = np.ones(len(self.kf.x))
-        s[k] = ACCEL_BIAS_HOLD / np.sqrt(np.maximum(np.diag(self.kf.P)[k], ACCEL_BIAS_HOLD ** 2))
-        self.kf.transform(np.diag(s))
-        self.Qc = self.Qc.copy()
-        self.Qc[k] = self._Qc0[k] = 0.0
-        self._held[k] = True
-
-    def cap_heading_prior(self, P0):
-        """Return P0 with its heading variance capped (:func:`capped_heading_prior`).
-
-        Families with cubature filters call this on their P0 before building the filter
-        (``i_phi`` must be set); the coarse variance is kept for :meth:`attitude_cov`.
-        """
-        k = np.arange(len(P0))[self.i_phi][2]
-        P0, self.heading_prior_var = capped_heading_prior(P0, k)
-        return P0
 
     def attitude_cov(self):
         """Misalignment covariance about ENU (3, 3), rad^2, with the coarse heading prior.

@@ -67,12 +67,15 @@ def gnss_sigma(cfg, name, reported):
     return cfg[name]
 
 
-def make_engine(cfg, noise, start, has_velocity):
+def make_engine(cfg, noise, start, has_velocity, heading_known=True):
     """Build the engine of ``cfg['fine_filter']`` from a coarse result ``start``.
 
     ``start`` is a :class:`~.coarse_stage.CoarseResult`; ``has_velocity``: GNSS velocity
-    messages have arrived. Returns ``(engine, floor (3,), warnings)``: ``floor`` the
-    variances (rad^2) the model cannot see, added to its attitude covariance at output.
+    messages have arrived; ``heading_known`` False (an aided filter at rest with a gyro
+    that cannot find north): the level accelerometer bias is not estimated
+    (:meth:`~.aided.PriorShaping.hold_level_accel_bias`). Returns ``(engine, floor (3,),
+    warnings)``: ``floor`` the variances (rad^2) the model cannot see, added to its
+    attitude covariance at output.
     """
     ff = cfg['fine_filter']
     if not is_aided(ff):
@@ -114,6 +117,8 @@ def make_engine(cfg, noise, start, has_velocity):
             adaptive=asckf and cfg['asckf_adaptive'], adapt_q=cfg['asckf_adapt_q'],
             b=cfg['asckf_forgetting'], use_reported_cov=cfg['use_reported_gnss_covariance'],
             **gate)
+    if not heading_known:
+        eng.hold_level_accel_bias()
     # a model without accelerometer bias leaves a tilt of bias / g, added at the output
     tilt = 0.0 if eng.has_accel_bias else (noise.accel_bias / earth.gravity(lat, h)) ** 2
     return eng, np.array([tilt, tilt, 0.0]), warnings

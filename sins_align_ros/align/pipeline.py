@@ -316,12 +316,11 @@ class AlignmentPipeline:
                                  else self_check.NO_HEADING)
 
     def _start_engine(self, start):
-        engine, floor, warnings = make_engine(self.cfg, self.noise, start, bool(self.gnss.vels))
-        self.warnings.extend(warnings)
         c = self.check
         heading_known = c is None or c.heading_observable or (self.aided and not c.at_rest)
-        if self.aided and not heading_known:
-            engine.hold_level_accel_bias()
+        engine, floor, warnings = make_engine(self.cfg, self.noise, start, bool(self.gnss.vels),
+                                              heading_known)
+        self.warnings.extend(warnings)
         self.fine = FineStage(engine, floor, self.clock, self.cfg, heading_known,
                               unobservable_variance(start.position[0], self.noise)[0])
 
