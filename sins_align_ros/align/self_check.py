@@ -296,7 +296,6 @@ def motion_free_velocity_sigma(t_v, V, window):
     c, s_ = math.cos(psi), math.sin(psi)
     e = V_h - U_h @ np.array([[c, s_], [-s_, c]])
     # what is left is the receiver's noise on a smooth curve: its second differences
-    # (variance 6 sigma^2 for white noise; a line cancels, a smooth curve nearly)
     # (variance 6 sigma^2 for white noise; a line cancels, a smooth curve nearly); an
     # outlier makes three of them large: those beyond 3 sigma and their neighbours are
     # dropped and the median taken again
