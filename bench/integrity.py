@@ -76,7 +76,7 @@ FILTER_SCENARIOS = {
     'vbakf': ('static', 'seed003_car', 'seed001_flight'),
     'mvbakf': ('static', 'seed003_car', 'seed001_flight'),
     'ukf': ('static', 'seed003_car', 'seed001_flight'),
-    'auto': ('static', 'ship_sway', 'seed003_car'),
+    'auto': ('static', 'ship_sway', 'seed000', 'seed001_flight', 'seed003_car', 'seed004'),
 }
 GRADES = ('navigation', 'tactical', 'mems')
 TOLD = ('right', 'defaults', 'optimistic')
