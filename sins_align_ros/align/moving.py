@@ -79,7 +79,7 @@ def model_noise(sigma, s_v, s_p, noise, q_drift, accel_bias_q=0.0, accel_bias=Tr
 
 
 def true_specific_force(f_c, C_b_n, x):
-    """The specific force (ENU, (3,)) the 13-state model wants, at the estimate ``x``.
+    """Return the specific force (ENU, (3,)) the 13-state model wants, at the estimate ``x``.
 
     Seed 000 eq. 3 takes the true specific force. The mechanization's ``f_c`` is
     ``C~_b_n (f_b + nab) = C_n^n' f_n + C~_b_n nab`` (``C_b_n`` the computed attitude):
