@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import earth
+from . import earth, kernels
 
 
 @dataclass(frozen=True)
@@ -289,17 +289,33 @@ class Strapdown:
         Returns
         -------
         dict with ``C_b_n`` (N, 3, 3), ``v_n`` (N, 3), ``pos`` (N, 3) as (lat, lon, h).
+
+        The loop is :func:`~.kernels.strapdown_run` (compiled): :meth:`update`'s equations,
+        equal to it to round-off (test_mechanization.py).
         """
+        dtheta = np.ascontiguousarray(dtheta, dtype=float)
+        dv = np.ascontiguousarray(dv, dtype=float)
         n = len(dtheta)
-        dt = np.broadcast_to(np.asarray(dt, dtype=float), (n,))
+        dt = np.ascontiguousarray(np.broadcast_to(np.asarray(dt, dtype=float), (n,)))
         C = np.empty((n, 3, 3))
         V = np.empty((n, 3))
         P = np.empty((n, 3))
-        for k in range(n):
-            self.update(dtheta[k], dv[k], dt[k])
-            C[k] = self.C_b_n
-            V[k] = self.v_n
-            P[k] = (self.lat, self.lon, self.h)
+        S = np.empty((n, 3))
+        if n == 0:
+            return {'C_b_n': C, 'v_n': V, 'pos': P}
+        opt = self.options
+        # copies: the kernel writes its state in place, and the history may share memory
+        # with a caller's array (``update`` keeps references)
+        state = [np.array(a, dtype=float) for a in (
+            self.C_b_n, self.v_n, self._v_prev, self.position, self._pos_prev,
+            self._dtheta_prev, self._dv_prev)]
+        self._steps = kernels.strapdown_run(
+            *state, self._steps, dtheta, dv, dt, opt.transport_rate, opt.update_position,
+            opt.coriolis, opt.hold_vertical, C, V, P, S)
+        (self.C_b_n, self.v_n, self._v_prev, pos, self._pos_prev, self._dtheta_prev,
+         self._dv_prev) = state
+        self.lat, self.lon, self.h = (float(x) for x in pos)
+        self.dv_sf = S[-1].copy()
         return {'C_b_n': C, 'v_n': V, 'pos': P}
 
 

@@ -1,0 +1,174 @@
+"""Compiled inner loops of the navigation layer (numba), with a pure-Python fallback.
+
+:func:`strapdown_run` is :meth:`~.mechanization.Strapdown.update` applied to a block
+of samples: the same equations in the same order (the module docstring of
+:mod:`~.mechanization`), written on scalars so that numba compiles it to a loop
+without temporaries. :meth:`Strapdown.update` stays the readable reference, and a test
+keeps the two equal to round-off (test_mechanization.py).
+
+numba is optional at run time: without it, or with ``SINS_ALIGN_NO_JIT=1`` in the
+environment, the same functions run as plain Python (correct and slow). Compiled code
+is cached on disk (``cache=True``: beside this file, or in the user's cache directory
+when that is read-only, numba's own fallback), so only the first start on a machine
+compiles (issue 22).
+"""
+import math
+import os
+
+import numpy as np
+
+from .earth import A, E2, G_EQUATOR, K_SOMIGLIANA, OMEGA_IE
+
+try:                                     # pragma: no cover - depends on the install
+    import numba
+except ImportError:                      # pragma: no cover
+    numba = None
+
+#: the kernels are compiled (numba present and not switched off)
+COMPILED = numba is not None and os.environ.get('SINS_ALIGN_NO_JIT', '') != '1'
+
+
+def jit(func):
+    """Compile ``func`` with numba (cached on disk) when :data:`COMPILED`, else return it."""
+    if COMPILED:
+        return numba.njit(cache=True, nogil=True)(func)
+    return func
+
+
+@jit
+def _radii(lat):
+    s = math.sin(lat)
+    w = 1.0 - E2 * s * s
+    sw = math.sqrt(w)
+    return A * (1.0 - E2) / (w * sw), A / sw
+
+
+@jit
+def _gravity(lat, h):
+    s2 = math.sin(lat) ** 2
+    g0 = G_EQUATOR * (1.0 + K_SOMIGLIANA * s2) / math.sqrt(1.0 - E2 * s2)
+    return g0 - (3.0877e-6 - 4.4e-9 * s2) * h + 7.2e-14 * h ** 2
+
+
+@jit
+def _rodrigues(x, y, z, R):
+    """``exp([v x])`` into ``R`` (3, 3) (as ``mechanization._rodrigues9``)."""
+    a2 = x * x + y * y + z * z
+    if a2 < 1e-12:
+        s = 1.0 - a2 / 6.0
+        c = 0.5 - a2 / 24.0
+    else:
+        a = math.sqrt(a2)
+        s = math.sin(a) / a
+        c = (1.0 - math.cos(a)) / a2
+    R[0, 0] = 1.0 - c * (y * y + z * z)
+    R[0, 1] = c * x * y - s * z
+    R[0, 2] = c * x * z + s * y
+    R[1, 0] = c * x * y + s * z
+    R[1, 1] = 1.0 - c * (x * x + z * z)
+    R[1, 2] = c * y * z - s * x
+    R[2, 0] = c * x * z - s * y
+    R[2, 1] = c * y * z + s * x
+    R[2, 2] = 1.0 - c * (x * x + y * y)
+
+
+@jit
+def strapdown_run(C, v, v_prev, pos, pos_prev, dth_prev, dv_prev, steps, dtheta, dv, dt,
+                  transport_rate, update_position, coriolis, hold_vertical,
+                  C_out, v_out, pos_out, dvsf_out):
+    """Advance the strapdown state over N samples; the state arrays change in place.
+
+    State (as :class:`~.mechanization.Strapdown`'s): ``C`` (3, 3) ``C_b_n``; ``v``,
+    ``v_prev`` (3,) ENU velocity now and one sample before; ``pos``, ``pos_prev`` (3,)
+    (lat, lon, h); ``dth_prev``, ``dv_prev`` (3,) the last increments; ``steps`` the
+    samples so far (re-orthonormalisation every 1000). Input: ``dtheta``, ``dv`` (N, 3)
+    body increments (rad, m/s), ``dt`` (N,) s; the four
+    :class:`~.mechanization.MechanizationOptions` flags. Output, per sample:
+    ``C_out`` (N, 3, 3), ``v_out`` (N, 3), ``pos_out`` (N, 3) and ``dvsf_out`` (N, 3),
+    the specific-force increment in ENU. Returns the new ``steps``.
+    """
+    E = np.empty((3, 3))
+    Pm = np.empty((3, 3))
+    T = np.empty((3, 3))
+    for k in range(dtheta.shape[0]):
+        ax, ay, az = dtheta[k, 0], dtheta[k, 1], dtheta[k, 2]
+        bx, by, bz = dv[k, 0], dv[k, 1], dv[k, 2]
+        px, py, pz = dth_prev[0], dth_prev[1], dth_prev[2]
+        qx, qy, qz = dv_prev[0], dv_prev[1], dv_prev[2]
+        h_dt = dt[k]
+        # coning and rotation + sculling (module docstring of mechanization)
+        fx = ax + (py * az - pz * ay) / 12.0
+        fy = ay + (pz * ax - px * az) / 12.0
+        fz = az + (px * ay - py * ax) / 12.0
+        rx, ry, rz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+        ux = (bx + 0.5 * rx + (ay * rz - az * ry) / 6.0
+              + ((py * bz - pz * by) + (qy * az - qz * ay)) / 12.0)
+        uy = (by + 0.5 * ry + (az * rx - ax * rz) / 6.0
+              + ((pz * bx - px * bz) + (qz * ax - qx * az)) / 12.0)
+        uz = (bz + 0.5 * rz + (ax * ry - ay * rx) / 6.0
+              + ((px * by - py * bx) + (qx * ay - qy * ax)) / 12.0)
+        v0, v1, v2 = v[0], v[1], v[2]
+        m0 = 1.5 * v0 - 0.5 * v_prev[0]
+        m1 = 1.5 * v1 - 0.5 * v_prev[1]
+        m2 = 1.5 * v2 - 0.5 * v_prev[2]
+        lat, lon, h = pos[0], pos[1], pos[2]
+        if update_position:
+            lat_m = 1.5 * lat - 0.5 * pos_prev[0]
+            h_m = 1.5 * h - 0.5 * pos_prev[2]
+        else:
+            lat_m, h_m = lat, h
+        ie1, ie2 = OMEGA_IE * math.cos(lat_m), OMEGA_IE * math.sin(lat_m)
+        if transport_rate:
+            RM, RN = _radii(lat_m)
+            en0 = -m1 / (RM + h_m)
+            en1 = m0 / (RN + h_m)
+            en2 = m0 * math.tan(lat_m) / (RN + h_m)
+        else:
+            en0 = en1 = en2 = 0.0
+        zx, zy, zz = en0 * h_dt, (ie1 + en1) * h_dt, (ie2 + en2) * h_dt
+        sx = C[0, 0] * ux + C[0, 1] * uy + C[0, 2] * uz
+        sy = C[1, 0] * ux + C[1, 1] * uy + C[1, 2] * uz
+        sz = C[2, 0] * ux + C[2, 1] * uy + C[2, 2] * uz
+        sx, sy, sz = (sx - 0.5 * (zy * sz - zz * sy), sy - 0.5 * (zz * sx - zx * sz),
+                      sz - 0.5 * (zx * sy - zy * sx))
+        g = _gravity(lat_m, h_m)
+        n0, n1, n2 = v0 + sx, v1 + sy, v2 + sz - g * h_dt
+        if coriolis:
+            c0, c1, c2 = en0, 2.0 * ie1 + en1, 2.0 * ie2 + en2
+            n0 -= (c1 * m2 - c2 * m1) * h_dt
+            n1 -= (c2 * m0 - c0 * m2) * h_dt
+            n2 -= (c0 * m1 - c1 * m0) * h_dt
+        if hold_vertical:
+            n2 = 0.0
+        dvsf_out[k, 0], dvsf_out[k, 1], dvsf_out[k, 2] = sx, sy, sz
+        if update_position:
+            pos_prev[0], pos_prev[1], pos_prev[2] = lat, lon, h
+            a0, a1, a2 = 0.5 * (v0 + n0), 0.5 * (v1 + n1), 0.5 * (v2 + n2)
+            h_avg = h + 0.25 * (v2 + n2) * h_dt
+            RM0, _ = _radii(lat)
+            lat_avg = lat + 0.5 * (a1 / (RM0 + h_avg)) * h_dt
+            RMa, RNa = _radii(lat_avg)
+            pos[0] = lat + a1 / (RMa + h_avg) * h_dt
+            pos[1] = lon + a0 / ((RNa + h_avg) * math.cos(lat_avg)) * h_dt
+            pos[2] = h + a2 * h_dt
+        # C <- exp(-[zeta x]) C exp([phi x])
+        _rodrigues(-zx, -zy, -zz, E)
+        _rodrigues(fx, fy, fz, Pm)
+        for i in range(3):
+            for j in range(3):
+                T[i, j] = E[i, 0] * C[0, j] + E[i, 1] * C[1, j] + E[i, 2] * C[2, j]
+        for i in range(3):
+            for j in range(3):
+                C[i, j] = T[i, 0] * Pm[0, j] + T[i, 1] * Pm[1, j] + T[i, 2] * Pm[2, j]
+        steps += 1
+        if steps % 1000 == 0:
+            u, _, vt = np.linalg.svd(C)
+            C[:, :] = u @ vt
+        v_prev[0], v_prev[1], v_prev[2] = v0, v1, v2
+        v[0], v[1], v[2] = n0, n1, n2
+        dth_prev[0], dth_prev[1], dth_prev[2] = ax, ay, az
+        dv_prev[0], dv_prev[1], dv_prev[2] = bx, by, bz
+        C_out[k] = C
+        v_out[k] = v
+        pos_out[k] = pos
+    return steps
