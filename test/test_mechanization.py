@@ -154,3 +154,26 @@ def test_compiled_run_equals_the_per_sample_reference(options):
     np.testing.assert_array_equal(dtheta, c.dtheta)      # inputs untouched
     np.testing.assert_array_equal(dv, c.dv)
     assert np.abs(V_ref[-1] - V_ref[0]).max() > 0.1      # the state really moved
+
+
+def test_compiled_run_as_step_equals_scalar_steps_and_mixes_with_them():
+    """``run(as_step=True)`` is ``step``'s arithmetic (its Earth-term cache): a block, some
+    single steps and another block give what 3000 single steps give, to round-off (the
+    filters run blocks in the replay and single steps in the live node)."""
+    traj = Trajectory(45.7796, 126.6705, 10.0, heading_deg=45.0, speed=30.0,
+                      sway=TRAJECTORIES['sway'].sway)
+    sim = ImuSimulator(traj, ImuSpec(gyro_bias_dph=5.0, accel_bias_ug=500.0), 100.0, seed=3)
+    e0, v0, p0 = sim.initial_truth()
+    c = sim.next_chunk(3000)
+    ref = Strapdown(euler_to_dcm(e0), v0, *p0)
+    C_ref = np.array([ref.step(c.dtheta[k], c.dv[k], 0.01).copy() for k in range(3000)])
+    mix = Strapdown(euler_to_dcm(e0), v0, *p0)
+    a = mix.run(c.dtheta[:1200], c.dv[:1200], 0.01, as_step=True)
+    single = [mix.step(c.dtheta[k], c.dv[k], 0.01).copy() for k in range(1200, 1300)]
+    b = mix.run(c.dtheta[1300:], c.dv[1300:], 0.01, as_step=True)
+    C = np.concatenate([a['C_b_n'], single, b['C_b_n']])
+    np.testing.assert_allclose(C, C_ref, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(mix.v_n, ref.v_n, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(mix.position, ref.position, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(mix.dv_sf, ref.dv_sf, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(b['dv_sf'][-1], ref.dv_sf, rtol=0, atol=1e-15)

@@ -121,6 +121,37 @@ class IntervalSums:
         if self.attitude:
             self.C_sum += C * dt
 
+    def add_block(self, out, dt):
+        """Add mechanized samples in order, as :meth:`add` one at a time (sequential sums).
+
+        ``out``: :meth:`~sins_align_ros.nav.mechanization.Strapdown.run`'s record of them;
+        ``dt`` (N,) their intervals.
+        """
+        self.T = float(np.cumsum(np.r_[self.T, dt])[-1])
+        self.dv_sum = np.cumsum(np.vstack([self.dv_sum, out['dv_sf']]), axis=0)[-1]
+        self.v_sum = np.cumsum(np.vstack([self.v_sum, out['v_n'] * dt[:, None]]), axis=0)[-1]
+        if self.attitude:
+            self.C_sum = np.cumsum(np.concatenate(
+                [self.C_sum[None], out['C_b_n'] * dt[:, None, None]]), axis=0)[-1]
+
+
+@dataclass
+class Block:
+    """What :meth:`GnssAidedEngine.step_block` did with a block of samples.
+
+    ``C`` (end, 3, 3) the attitude after each sample; ``nav`` (end, 6) latitude,
+    longitude (rad), height (m) and ENU velocity (m/s) after each; ``predicted`` the
+    indices of the samples after which a prediction ran (an interval without GNSS);
+    ``end`` the samples done (all, or up to the one at which the filter diverged);
+    ``reason`` that divergence, or None.
+    """
+
+    C: np.ndarray
+    nav: np.ndarray
+    predicted: list
+    end: int
+    reason: str = None
+
 
 class PriorShaping:
     """What an engine does to its filter's prior before the first epoch.
@@ -236,6 +267,37 @@ class GnssAidedEngine(PriorShaping):
         if self.sums.T >= MAX_PREDICT:
             self.predict()
         return C
+
+    def step_block(self, dtheta, dv, dt):
+        """Mechanize N samples as N calls of :meth:`step_imu` would, in compiled blocks.
+
+        ``dtheta``, ``dv`` (N, 3), ``dt`` (N,); no GNSS epoch is applied here. The samples
+        run through :meth:`Strapdown.run(as_step=True)
+        <sins_align_ros.nav.mechanization.Strapdown.run>` up to each sample at which the
+        interval reaches :data:`MAX_PREDICT` (a prediction there, as :meth:`step_imu`
+        makes), with the sensor compensation of each stretch. Returns a :class:`Block`.
+        """
+        n = len(dt)
+        C, nav = np.empty((n, 3, 3)), np.empty((n, 6))
+        predicted = []
+        i = 0
+        while i < n:
+            T = np.cumsum(np.r_[self.sums.T, dt[i:]])[1:]
+            over = np.flatnonzero(T >= MAX_PREDICT)
+            j = i + int(over[0]) + 1 if len(over) else n
+            dth, dvc = self._correct_imu(dtheta[i:j], dv[i:j], dt[i:j, None])
+            out = self.mech.run(dth, dvc, dt[i:j], as_step=True)
+            self.sums.add_block(out, dt[i:j])
+            C[i:j] = out['C_b_n']
+            nav[i:j, :3], nav[i:j, 3:] = out['pos'], out['v_n']
+            if len(over):
+                try:
+                    self.predict()
+                except FilterDiverged as exc:
+                    return Block(C[:j], nav[:j], predicted, j, str(exc))
+                predicted.append(j - 1)
+            i = j
+        return Block(C, nav, predicted, n)
 
     def predict(self):
         """Predict over the interval so far without a measurement (an epoch without GNSS).

@@ -174,6 +174,13 @@ class FineStage:
         return self._run_aided(t[i:], dtheta[i:], dv[i:], gnss, i)
 
     def _run_aided(self, t, dtheta, dv, gnss, offset):
+        """Run the aided engines' block path: compiled stretches between GNSS epochs.
+
+        The same rows, covariances and phases as :meth:`step` sample by sample (a test
+        keeps them equal): each stretch ends at the sample a queued GNSS epoch is due at;
+        the rows are cut where the covariance changes, at a prediction without GNSS and at
+        a GNSS epoch.
+        """
         eng, c = self.engine, self.clock
         m = eng.mech
         n = len(t)
@@ -185,35 +192,44 @@ class FineStage:
             parts.append(Rows(t[start:end], Cs[start:end], cov, phase,
                               None if nav is None else nav[start:end]))
 
-        n_pred = eng.n_predict_only
-        for k in range(n):
-            tk = t[k]
-            reason = None
-            try:
-                Cs[k] = eng.step_imu(dtheta[k], dv[k], tk - c.t_last)
-            except FilterDiverged as exc:
-                reason = str(exc)
-            c.t_last = tk
-            predicted = reason is None and eng.n_predict_only != n_pred
-            due = reason is None and gnss.due(tk)
-            if (predicted or due) and k > start:     # the rows so far keep their covariance
-                cut(k, self.attitude_cov(), self.phase)
-                start = k
-            if predicted:                            # an epoch without GNSS: the sigma grew
-                n_pred = eng.n_predict_only
-                self._att_cov = None
-            if due:
-                reason = self._apply_gnss(tk, gnss)
-            if reason is not None or due:
-                Cs[k] = m.C_b_n
-            if reason is not None:                   # diverged: the stage ends at this row
-                if nav is not None:
-                    nav[k] = np.nan
-                cut(k + 1, eng.attitude_cov(), FINE)
-                return parts, offset + k + 1, reason
+        k = 0
+        while k < n:
+            due_at = gnss.next_due_index(t, k)
+            end = n if due_at is None else due_at + 1
+            dt = np.diff(np.r_[c.t_last, t[k:end]])
+            blk = eng.step_block(dtheta[k:end], dv[k:end], dt)
+            last = k + blk.end - 1
+            Cs[k:last + 1] = blk.C
             if nav is not None:
-                v = m.v_n
-                nav[k] = (m.lat, m.lon, m.h, v[0], v[1], v[2])
+                nav[k:last + 1] = blk.nav
+            c.t_last = t[last]
+            for e in [k + p for p in blk.predicted] + ([last] if blk.end < end - k else []):
+                if e == last and blk.reason is not None:       # diverged in a prediction
+                    Cs[e] = m.C_b_n
+                    if nav is not None:
+                        nav[e] = np.nan
+                    cut(e + 1, eng.attitude_cov(), FINE)
+                    return parts, offset + e + 1, blk.reason
+                if e > start:                  # the rows so far keep their covariance
+                    cut(e, self.attitude_cov(), self.phase)
+                    start = e
+                self._att_cov = None           # an epoch without GNSS: the sigma grew
+            if due_at is not None:
+                e = due_at
+                if e > start:
+                    cut(e, self.attitude_cov(), self.phase)
+                    start = e
+                reason = self._apply_gnss(t[e], gnss)
+                Cs[e] = m.C_b_n
+                if reason is not None:         # diverged: the stage ends at this row
+                    if nav is not None:
+                        nav[e] = np.nan
+                    cut(e + 1, eng.attitude_cov(), FINE)
+                    return parts, offset + e + 1, reason
+                if nav is not None:
+                    v = m.v_n
+                    nav[e] = (m.lat, m.lon, m.h, v[0], v[1], v[2])
+            k = end
         cut(n, self.attitude_cov(), self.phase)
         return parts, offset + n, None
 

@@ -100,6 +100,13 @@ class GnssBuffer:
         """Tell whether a queued epoch is stamped at or before ``t``."""
         return bool(self.pending) and self.pending[0][0] <= t + 1e-9
 
+    def next_due_index(self, t, k):
+        """Index of the first stamp of ``t`` (from ``k``) a queued epoch is due at, or None."""
+        if not self.pending:
+            return None
+        i = k + int(np.searchsorted(t[k:], self.pending[0][0] - 1e-9, side='left'))
+        return i if i < len(t) else None
+
     def pop_due(self, t_now, t_start):
         """Return the next usable queued epoch up to ``t_now`` as a :class:`GnssFix`, or None.
 

@@ -73,8 +73,26 @@ def _rodrigues(x, y, z, R):
 
 
 @jit
+def _earth(lat, h, cached, ec):
+    """``(sin, cos, tan, R_M, R_N, g)`` at ``lat``, ``h``; ``cached``: through ``ec`` (8,).
+
+    ``ec`` holds ``(lat, h, sin, cos, tan, R_M, R_N, g)`` of the last evaluation (``lat``
+    NaN: none), refreshed when the latitude moved by more than 1e-7 rad or the height by
+    more than 0.01 m, as ``Strapdown._earth_cache``.
+    """
+    if cached and ec[0] == ec[0] and abs(lat - ec[0]) <= 1e-7 and abs(h - ec[1]) <= 0.01:
+        return ec[2], ec[3], ec[4], ec[5], ec[6], ec[7]
+    RM, RN = _radii(lat)
+    out = (math.sin(lat), math.cos(lat), math.tan(lat), RM, RN, _gravity(lat, h))
+    if cached:
+        ec[0], ec[1] = lat, h
+        ec[2], ec[3], ec[4], ec[5], ec[6], ec[7] = out
+    return out
+
+
+@jit
 def strapdown_run(C, v, v_prev, pos, pos_prev, dth_prev, dv_prev, steps, dtheta, dv, dt,
-                  transport_rate, update_position, coriolis, hold_vertical,
+                  transport_rate, update_position, coriolis, hold_vertical, cached, ec,
                   C_out, v_out, pos_out, dvsf_out):
     """Advance the strapdown state over N samples; the state arrays change in place.
 
@@ -83,9 +101,12 @@ def strapdown_run(C, v, v_prev, pos, pos_prev, dth_prev, dv_prev, steps, dtheta,
     (lat, lon, h); ``dth_prev``, ``dv_prev`` (3,) the last increments; ``steps`` the
     samples so far (re-orthonormalisation every 1000). Input: ``dtheta``, ``dv`` (N, 3)
     body increments (rad, m/s), ``dt`` (N,) s; the four
-    :class:`~.mechanization.MechanizationOptions` flags. Output, per sample:
-    ``C_out`` (N, 3, 3), ``v_out`` (N, 3), ``pos_out`` (N, 3) and ``dvsf_out`` (N, 3),
-    the specific-force increment in ENU. Returns the new ``steps``.
+    :class:`~.mechanization.MechanizationOptions` flags. ``cached`` False:
+    :meth:`~.mechanization.Strapdown.update`'s arithmetic (Earth terms at every sample);
+    True: :meth:`~.mechanization.Strapdown.step`'s (Earth terms through the cache ``ec``,
+    :func:`_earth`). Output, per sample: ``C_out`` (N, 3, 3), ``v_out`` (N, 3),
+    ``pos_out`` (N, 3) and ``dvsf_out`` (N, 3), the specific-force increment in ENU.
+    Returns the new ``steps``.
     """
     E = np.empty((3, 3))
     Pm = np.empty((3, 3))
@@ -117,12 +138,12 @@ def strapdown_run(C, v, v_prev, pos, pos_prev, dth_prev, dv_prev, steps, dtheta,
             h_m = 1.5 * h - 0.5 * pos_prev[2]
         else:
             lat_m, h_m = lat, h
-        ie1, ie2 = OMEGA_IE * math.cos(lat_m), OMEGA_IE * math.sin(lat_m)
+        sl, cl, tl, RM, RN, g = _earth(lat_m, h_m, cached, ec)
+        ie1, ie2 = OMEGA_IE * cl, OMEGA_IE * sl
         if transport_rate:
-            RM, RN = _radii(lat_m)
             en0 = -m1 / (RM + h_m)
             en1 = m0 / (RN + h_m)
-            en2 = m0 * math.tan(lat_m) / (RN + h_m)
+            en2 = en1 * tl if cached else m0 * tl / (RN + h_m)
         else:
             en0 = en1 = en2 = 0.0
         zx, zy, zz = en0 * h_dt, (ie1 + en1) * h_dt, (ie2 + en2) * h_dt
@@ -131,7 +152,6 @@ def strapdown_run(C, v, v_prev, pos, pos_prev, dth_prev, dv_prev, steps, dtheta,
         sz = C[2, 0] * ux + C[2, 1] * uy + C[2, 2] * uz
         sx, sy, sz = (sx - 0.5 * (zy * sz - zz * sy), sy - 0.5 * (zz * sx - zx * sz),
                       sz - 0.5 * (zx * sy - zy * sx))
-        g = _gravity(lat_m, h_m)
         n0, n1, n2 = v0 + sx, v1 + sy, v2 + sz - g * h_dt
         if coriolis:
             c0, c1, c2 = en0, 2.0 * ie1 + en1, 2.0 * ie2 + en2
@@ -145,9 +165,13 @@ def strapdown_run(C, v, v_prev, pos, pos_prev, dth_prev, dv_prev, steps, dtheta,
             pos_prev[0], pos_prev[1], pos_prev[2] = lat, lon, h
             a0, a1, a2 = 0.5 * (v0 + n0), 0.5 * (v1 + n1), 0.5 * (v2 + n2)
             h_avg = h + 0.25 * (v2 + n2) * h_dt
-            RM0, _ = _radii(lat)
-            lat_avg = lat + 0.5 * (a1 / (RM0 + h_avg)) * h_dt
-            RMa, RNa = _radii(lat_avg)
+            if cached:                       # the radii of the interval (step)
+                RMa, RNa = RM, RN
+                lat_avg = lat + 0.5 * a1 / (RM + h_avg) * h_dt
+            else:                            # at the position, then mid-step (update)
+                RM0, _ = _radii(lat)
+                lat_avg = lat + 0.5 * (a1 / (RM0 + h_avg)) * h_dt
+                RMa, RNa = _radii(lat_avg)
             pos[0] = lat + a1 / (RMa + h_avg) * h_dt
             pos[1] = lon + a0 / ((RNa + h_avg) * math.cos(lat_avg)) * h_dt
             pos[2] = h + a2 * h_dt

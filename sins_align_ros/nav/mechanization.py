@@ -278,45 +278,53 @@ class Strapdown:
                                      float(R_N), float(earth.gravity(lat, h))))
         return c[2]
 
-    def run(self, dtheta, dv, dt):
+    def run(self, dtheta, dv, dt, as_step=False):
         """Process N samples and record the state after each.
 
         Parameters
         ----------
         dtheta, dv : ndarray (N, 3)
         dt : float or ndarray (N,)
+        as_step : bool
+            False: :meth:`update`'s arithmetic; True: :meth:`step`'s (its Earth-term
+            cache, shared with it), so that a block and the same samples one
+            :meth:`step` at a time give the same state to round-off.
 
         Returns
         -------
-        dict with ``C_b_n`` (N, 3, 3), ``v_n`` (N, 3), ``pos`` (N, 3) as (lat, lon, h).
+        dict with ``C_b_n`` (N, 3, 3), ``v_n`` (N, 3), ``pos`` (N, 3) as (lat, lon, h),
+        and ``dv_sf`` (N, 3), each sample's specific-force increment in ENU.
 
-        The loop is :func:`~.kernels.strapdown_run` (compiled): :meth:`update`'s equations,
-        equal to it to round-off (test_mechanization.py).
+        The loop is :func:`~.kernels.strapdown_run` (compiled), kept equal to
+        :meth:`update` and :meth:`step` to round-off (test_mechanization.py).
         """
         dtheta = np.ascontiguousarray(dtheta, dtype=float)
         dv = np.ascontiguousarray(dv, dtype=float)
         n = len(dtheta)
         dt = np.ascontiguousarray(np.broadcast_to(np.asarray(dt, dtype=float), (n,)))
-        C = np.empty((n, 3, 3))
-        V = np.empty((n, 3))
-        P = np.empty((n, 3))
-        S = np.empty((n, 3))
+        out = {'C_b_n': np.empty((n, 3, 3)), 'v_n': np.empty((n, 3)), 'pos': np.empty((n, 3)),
+               'dv_sf': np.empty((n, 3))}
         if n == 0:
-            return {'C_b_n': C, 'v_n': V, 'pos': P}
+            return out
         opt = self.options
         # copies: the kernel writes its state in place, and the history may share memory
         # with a caller's array (``update`` keeps references)
         state = [np.array(a, dtype=float) for a in (
             self.C_b_n, self.v_n, self._v_prev, self.position, self._pos_prev,
             self._dtheta_prev, self._dv_prev)]
+        c = getattr(self, '_ec', None) if as_step else None
+        ec = np.full(8, np.nan) if c is None else np.array([c[0], c[1], *c[2]])
         self._steps = kernels.strapdown_run(
             *state, self._steps, dtheta, dv, dt, opt.transport_rate, opt.update_position,
-            opt.coriolis, opt.hold_vertical, C, V, P, S)
+            opt.coriolis, opt.hold_vertical, bool(as_step), ec, out['C_b_n'], out['v_n'],
+            out['pos'], out['dv_sf'])
         (self.C_b_n, self.v_n, self._v_prev, pos, self._pos_prev, self._dtheta_prev,
          self._dv_prev) = state
         self.lat, self.lon, self.h = (float(x) for x in pos)
-        self.dv_sf = S[-1].copy()
-        return {'C_b_n': C, 'v_n': V, 'pos': P}
+        self.dv_sf = out['dv_sf'][-1].copy()
+        if as_step and ec[0] == ec[0]:
+            self._ec = (float(ec[0]), float(ec[1]), tuple(float(x) for x in ec[2:]))
+        return out
 
 
 def _exp_so3_batch(v):
