@@ -17,8 +17,8 @@ Both return ``C_b_n`` (FLU body -> ENU) at the end of the data window.
 """
 import numpy as np
 
-from . import earth
-from .frames import orthonormalize, rotvec_to_dcm
+from . import earth, kernels
+from .frames import orthonormalize
 
 
 def _triad(a_b, b_b, a_n, b_n):
@@ -57,17 +57,12 @@ def analytic(dtheta, dv, dt, lat):
 def body_attitude_increments(dtheta):
     """``C_b(t_k)^{b0}`` for k = 1..N: body attitude relative to the start, (N, 3, 3).
 
-    Uses the same coning correction as the mechanization.
+    Uses the same coning correction as the mechanization (compiled loop,
+    :func:`~.kernels.attitude_increments`).
     """
-    n = len(dtheta)
-    out = np.empty((n, 3, 3))
-    C = np.eye(3)
-    prev = np.zeros(3)
-    for k in range(n):
-        phi = dtheta[k] + np.cross(prev, dtheta[k]) / 12.0
-        C = C @ rotvec_to_dcm(phi)
-        out[k] = C
-        prev = dtheta[k]
+    dtheta = np.ascontiguousarray(dtheta, dtype=float)
+    out = np.empty((len(dtheta), 3, 3))
+    kernels.attitude_increments(dtheta, out)
     return out
 
 

@@ -196,3 +196,26 @@ def strapdown_run(C, v, v_prev, pos, pos_prev, dth_prev, dv_prev, steps, dtheta,
         v_out[k] = v
         pos_out[k] = pos
     return steps
+
+
+@jit
+def attitude_increments(dtheta, out):
+    """``C_b(t_k)^{b0}`` for k = 1..N into ``out`` (N, 3, 3), from ``dtheta`` (N, 3) rad.
+
+    The body attitude relative to the start, with the mechanization's coning correction
+    (``coarse.body_attitude_increments``).
+    """
+    C = np.eye(3)
+    T = np.empty((3, 3))
+    R = np.empty((3, 3))
+    px = py = pz = 0.0
+    for k in range(dtheta.shape[0]):
+        ax, ay, az = dtheta[k, 0], dtheta[k, 1], dtheta[k, 2]
+        _rodrigues(ax + (py * az - pz * ay) / 12.0, ay + (pz * ax - px * az) / 12.0,
+                   az + (px * ay - py * ax) / 12.0, R)
+        for i in range(3):
+            for j in range(3):
+                T[i, j] = C[i, 0] * R[0, j] + C[i, 1] * R[1, j] + C[i, 2] * R[2, j]
+        C[:, :] = T
+        out[k] = C
+        px, py, pz = ax, ay, az
