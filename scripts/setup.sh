@@ -39,5 +39,13 @@ if [ ! -f "$stamp" ] || [ -n "$(find setup.py setup.cfg package.xml resource sin
       --event-handlers console_cohesion- summary- >"$root/log/colcon-build.txt" 2>&1 \
       || { cat "$root/log/colcon-build.txt" >&2; exit 1; }
   )
+  # compile the numba kernels into their on-disk caches (the installed copy and the
+  # source tree the tests import), so that no first run compiles in the middle of the data
+  for where in "$root/install/sins_align_ros/lib/python3.11/site-packages" "$root"; do
+    (cd "$where" && "$venv/bin/python" -c \
+      "from sins_align_ros.nav import kernels; kernels.warm_up(); print(kernels.__file__)") \
+      >>"$root/log/colcon-build.txt" \
+      || { echo "setup: compiling the numba kernels failed" >&2; exit 1; }
+  done
   touch "$stamp"
 fi

@@ -219,3 +219,22 @@ def attitude_increments(dtheta, out):
         C[:, :] = T
         out[k] = C
         px, py, pz = ax, ay, az
+
+
+def warm_up():
+    """Compile (or load from the cache) every kernel now; returns the seconds it took.
+
+    A live node calls this before it subscribes: the first use otherwise compiles in the
+    middle of the data (the coarse window's end), seconds during which messages queue up
+    and can be dropped.
+    """
+    import time
+    t0 = time.perf_counter()
+    z = np.zeros((2, 3))
+    attitude_increments(z, np.empty((2, 3, 3)))
+    for cached in (False, True):
+        strapdown_run(np.eye(3), np.zeros(3), np.zeros(3), np.array([0.5, 0.0, 0.0]),
+                      np.array([0.5, 0.0, 0.0]), np.zeros(3), np.zeros(3), 0, z, z,
+                      np.full(2, 0.01), True, True, True, False, cached, np.full(8, np.nan),
+                      np.empty((2, 3, 3)), np.empty((2, 3)), np.empty((2, 3)), np.empty((2, 3)))
+    return time.perf_counter() - t0

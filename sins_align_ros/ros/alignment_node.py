@@ -51,6 +51,7 @@ from ..align import params as prm
 from ..align.imu_input import SKIP
 from ..align.odometry import OdometryFrame
 from ..align.session import AlignmentSession
+from ..nav import kernels
 
 NODE_PARAMS = prm.NODE_PARAMS
 PARAMS = prm.ALIGNMENT_PARAMS + NODE_PARAMS
@@ -67,6 +68,8 @@ class AlignmentNode(Node):
         self.p = declare(self, PARAMS)
         self._align_values = {k: v for k, v in self.p.items() if k in _ALIGN_NAMES}
         self.session = AlignmentSession(self._align_values)   # ValueError: refused
+        # compile the numeric kernels now, not at the coarse window's end amid the data
+        self.get_logger().debug(f'numeric kernels ready in {kernels.warm_up():.2f} s')
         #: recent (stamp, message): with pre-processing an output refers to an earlier
         #: sample, published with that sample's header
         self._recent = deque(maxlen=4 * 4096 + 64)
