@@ -300,6 +300,22 @@ def test_gyro_bias_instability_lets_the_drift_states_follow_a_markov_bias():
     assert p.noise.gyro_bias == pytest.approx(np.hypot(200.0, 50.0) * DPH)
 
 
+def _turning_ship(nab):
+    """60 s at 100 Hz of a swaying ship turning at 1.5 deg/s, accelerometer bias ``nab``.
+
+    Returns ``(trajectory, samples, initial truth (euler, v_n, position), phi0)`` with
+    ``phi0`` a 30 deg heading error and 0.03 deg tilts.
+    """
+    from sins_align_ros.sim.imu import ImuSimulator, ImuSpec
+    from sins_align_ros.sim.presets import SEED000_SWAY
+    from sins_align_ros.sim.trajectory import Segment, Trajectory
+    traj = Trajectory(45.78, 126.67, 0.0, heading_deg=45.0, speed=8.0,
+                      segments=[Segment(60.0, turn_rate=1.5, ramp=5.0)], sway=SEED000_SWAY)
+    sim = ImuSimulator(traj, ImuSpec(accel_bias_ug=nab / UG), 100.0)
+    truth = sim.initial_truth()
+    return traj, sim.next_chunk(6000), truth, np.array([0.03, 0.03, 30.0]) * DEG
+
+
 def test_accel_bias_states_predict_the_mechanization_errors_in_a_turn():
     """13-state model: a body-axis accelerometer bias turns with the vehicle in ENU.
 
@@ -308,16 +324,9 @@ def test_accel_bias_states_predict_the_mechanization_errors_in_a_turn():
     follows the full mechanization; seed 000's 10 states miss the bias's velocity error.
     """
     from sins_align_ros.nav import earth
-    from sins_align_ros.sim.imu import ImuSimulator, ImuSpec, specific_force_n
-    from sins_align_ros.sim.presets import SEED000_SWAY
-    from sins_align_ros.sim.trajectory import Segment, Trajectory
-    traj = Trajectory(45.78, 126.67, 0.0, heading_deg=45.0, speed=8.0,
-                      segments=[Segment(60.0, turn_rate=1.5, ramp=5.0)], sway=SEED000_SWAY)
+    from sins_align_ros.sim.imu import specific_force_n
     nab = np.array([100.0, -80.0, 60.0]) * UG
-    sim = ImuSimulator(traj, ImuSpec(accel_bias_ug=nab / UG), 100.0)
-    e0, v0, p0 = sim.initial_truth()
-    c = sim.next_chunk(6000)
-    phi0 = np.array([0.03, 0.03, 30.0]) * DEG
+    traj, c, (e0, v0, p0), phi0 = _turning_ship(nab)
     out = Strapdown(la.C_n_nprime(phi0) @ euler_to_dcm(e0), v0, *p0).run(c.dtheta, c.dv, 0.01)
     x10, x13 = np.r_[0, 0, 0, 0, phi0, 0, 0, 0], np.r_[0, 0, 0, 0, phi0, 0, 0, 0, nab]
     for k in range(9, 6000, 10):                       # 10 Hz model steps, truth at mid-step
@@ -344,16 +353,8 @@ def test_the_model_takes_the_mechanizations_specific_force_as_the_engine_gives_i
     computed force as the true one adds heading error x bias to the velocity error, which
     the mechanization does not have.
     """
-    from sins_align_ros.sim.imu import ImuSimulator, ImuSpec
-    from sins_align_ros.sim.presets import SEED000_SWAY
-    from sins_align_ros.sim.trajectory import Segment, Trajectory
-    traj = Trajectory(45.78, 126.67, 0.0, heading_deg=45.0, speed=8.0,
-                      segments=[Segment(60.0, turn_rate=1.5, ramp=5.0)], sway=SEED000_SWAY)
     nab = np.array([5000.0, -4000.0, 3000.0]) * UG
-    sim = ImuSimulator(traj, ImuSpec(accel_bias_ug=nab / UG), 100.0)
-    e0, v0, p0 = sim.initial_truth()
-    c = sim.next_chunk(6000)
-    phi0 = np.array([0.03, 0.03, 30.0]) * DEG
+    _, c, (e0, v0, p0), phi0 = _turning_ship(nab)
     m = Strapdown(la.C_n_nprime(phi0) @ euler_to_dcm(e0), v0, *p0)
     x_c = x_t = np.r_[0, 0, 0, 0, phi0, 0, 0, 0, nab]
     for k0 in range(0, 6000, 10):                      # 10 Hz model steps

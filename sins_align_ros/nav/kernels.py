@@ -51,8 +51,12 @@ def _gravity(lat, h):
 
 
 @jit
-def _rodrigues(x, y, z, R):
-    """``exp([v x])`` into ``R`` (3, 3) (as ``mechanization._rodrigues9``)."""
+def rodrigues9(x, y, z):
+    """Rodrigues ``exp([v x])`` of ``v = (x, y, z)`` as a row-major 9-tuple of floats.
+
+    The one Rodrigues of the mechanization: the kernels and the scalar Python path
+    (``Strapdown.step``) both call it.
+    """
     a2 = x * x + y * y + z * z
     if a2 < 1e-12:
         s = 1.0 - a2 / 6.0
@@ -61,15 +65,18 @@ def _rodrigues(x, y, z, R):
         a = math.sqrt(a2)
         s = math.sin(a) / a
         c = (1.0 - math.cos(a)) / a2
-    R[0, 0] = 1.0 - c * (y * y + z * z)
-    R[0, 1] = c * x * y - s * z
-    R[0, 2] = c * x * z + s * y
-    R[1, 0] = c * x * y + s * z
-    R[1, 1] = 1.0 - c * (x * x + z * z)
-    R[1, 2] = c * y * z - s * x
-    R[2, 0] = c * x * z - s * y
-    R[2, 1] = c * y * z + s * x
-    R[2, 2] = 1.0 - c * (x * x + y * y)
+    return (1.0 - c * (y * y + z * z), c * x * y - s * z, c * x * z + s * y,
+            c * x * y + s * z, 1.0 - c * (x * x + z * z), c * y * z - s * x,
+            c * x * z - s * y, c * y * z + s * x, 1.0 - c * (x * x + y * y))
+
+
+@jit
+def _rodrigues(x, y, z, R):
+    """:func:`rodrigues9` into ``R`` (3, 3)."""
+    r = rodrigues9(x, y, z)
+    R[0, 0], R[0, 1], R[0, 2] = r[0], r[1], r[2]
+    R[1, 0], R[1, 1], R[1, 2] = r[3], r[4], r[5]
+    R[2, 0], R[2, 1], R[2, 2] = r[6], r[7], r[8]
 
 
 @jit
@@ -88,6 +95,28 @@ def _earth(lat, h, cached, ec):
         ec[0], ec[1] = lat, h
         ec[2], ec[3], ec[4], ec[5], ec[6], ec[7] = out
     return out
+
+
+@jit
+def coning_sculling(ax, ay, az, bx, by, bz, px, py, pz, qx, qy, qz):
+    """Coning-corrected rotation ``phi`` and rotation + sculling corrected ``dv_b``.
+
+    ``a``: this sample's ``dtheta``, ``b`` its ``dv``, ``p`` and ``q`` the previous
+    sample's (body axes, rad and m/s); the formulas of :mod:`~.mechanization`'s module
+    docstring. Returns the six floats ``phi (3), dv_b (3)``; the scalar Python path
+    (``Strapdown.step``) calls it too.
+    """
+    fx = ax + (py * az - pz * ay) / 12.0
+    fy = ay + (pz * ax - px * az) / 12.0
+    fz = az + (px * ay - py * ax) / 12.0
+    rx, ry, rz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    ux = (bx + 0.5 * rx + (ay * rz - az * ry) / 6.0
+          + ((py * bz - pz * by) + (qy * az - qz * ay)) / 12.0)
+    uy = (by + 0.5 * ry + (az * rx - ax * rz) / 6.0
+          + ((pz * bx - px * bz) + (qz * ax - qx * az)) / 12.0)
+    uz = (bz + 0.5 * rz + (ax * ry - ay * rx) / 6.0
+          + ((px * by - py * bx) + (qx * ay - qy * ax)) / 12.0)
+    return fx, fy, fz, ux, uy, uz
 
 
 @jit
@@ -117,17 +146,8 @@ def strapdown_run(C, v, v_prev, pos, pos_prev, dth_prev, dv_prev, steps, dtheta,
         px, py, pz = dth_prev[0], dth_prev[1], dth_prev[2]
         qx, qy, qz = dv_prev[0], dv_prev[1], dv_prev[2]
         h_dt = dt[k]
-        # coning and rotation + sculling (module docstring of mechanization)
-        fx = ax + (py * az - pz * ay) / 12.0
-        fy = ay + (pz * ax - px * az) / 12.0
-        fz = az + (px * ay - py * ax) / 12.0
-        rx, ry, rz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-        ux = (bx + 0.5 * rx + (ay * rz - az * ry) / 6.0
-              + ((py * bz - pz * by) + (qy * az - qz * ay)) / 12.0)
-        uy = (by + 0.5 * ry + (az * rx - ax * rz) / 6.0
-              + ((pz * bx - px * bz) + (qz * ax - qx * az)) / 12.0)
-        uz = (bz + 0.5 * rz + (ax * ry - ay * rx) / 6.0
-              + ((px * by - py * bx) + (qx * ay - qy * ax)) / 12.0)
+        fx, fy, fz, ux, uy, uz = coning_sculling(ax, ay, az, bx, by, bz,
+                                                 px, py, pz, qx, qy, qz)
         v0, v1, v2 = v[0], v[1], v[2]
         m0 = 1.5 * v0 - 0.5 * v_prev[0]
         m1 = 1.5 * v1 - 0.5 * v_prev[1]
@@ -232,6 +252,8 @@ def warm_up():
     t0 = time.perf_counter()
     z = np.zeros((2, 3))
     attitude_increments(z, np.empty((2, 3, 3)))
+    rodrigues9(0.0, 0.0, 0.0)                       # the scalar path's entry points
+    coning_sculling(*([0.0] * 12))
     for cached in (False, True):
         strapdown_run(np.eye(3), np.zeros(3), np.zeros(3), np.array([0.5, 0.0, 0.0]),
                       np.array([0.5, 0.0, 0.0]), np.zeros(3), np.zeros(3), 0, z, z,

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import earth, kernels
+from .kernels import rodrigues9 as _rodrigues9
 
 
 @dataclass(frozen=True)
@@ -473,16 +474,8 @@ def _coning_sculling(dtheta, dv, dtheta_prev, dv_prev):
     bx, by, bz = float(dv[0]), float(dv[1]), float(dv[2])
     px, py, pz = dtheta_prev.tolist()
     qx, qy, qz = dv_prev.tolist()
-    fx = ax + (py * az - pz * ay) / 12.0
-    fy = ay + (pz * ax - px * az) / 12.0
-    fz = az + (px * ay - py * ax) / 12.0
-    rx, ry, rz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-    ux = (bx + 0.5 * rx + (ay * rz - az * ry) / 6.0
-          + ((py * bz - pz * by) + (qy * az - qz * ay)) / 12.0)
-    uy = (by + 0.5 * ry + (az * rx - ax * rz) / 6.0
-          + ((pz * bx - px * bz) + (qz * ax - qx * az)) / 12.0)
-    uz = (bz + 0.5 * rz + (ax * ry - ay * rx) / 6.0
-          + ((px * by - py * bx) + (qx * ay - qy * ax)) / 12.0)
+    fx, fy, fz, ux, uy, uz = kernels.coning_sculling(ax, ay, az, bx, by, bz,
+                                                     px, py, pz, qx, qy, qz)
     return ax, ay, az, bx, by, bz, fx, fy, fz, ux, uy, uz
 
 
@@ -497,21 +490,6 @@ def _nav_specific_force(C0, ux, uy, uz, zx, zy, zz):
     sz = C0[6] * ux + C0[7] * uy + C0[8] * uz
     return (sx - 0.5 * (zy * sz - zz * sy), sy - 0.5 * (zz * sx - zx * sz),
             sz - 0.5 * (zx * sy - zy * sx))
-
-
-def _rodrigues9(x, y, z):
-    """Rodrigues ``exp([v x])`` as a row-major 9-tuple of floats (scalar fast path)."""
-    a2 = x * x + y * y + z * z
-    if a2 < 1e-12:
-        s = 1.0 - a2 / 6.0
-        c = 0.5 - a2 / 24.0
-    else:
-        a = math.sqrt(a2)
-        s = math.sin(a) / a
-        c = (1.0 - math.cos(a)) / a2
-    return (1.0 - c * (y * y + z * z), c * x * y - s * z, c * x * z + s * y,
-            c * x * y + s * z, 1.0 - c * (x * x + z * z), c * y * z - s * x,
-            c * x * z - s * y, c * y * z + s * x, 1.0 - c * (x * x + y * y))
 
 
 def _mm9(A, B):
