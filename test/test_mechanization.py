@@ -177,3 +177,22 @@ def test_compiled_run_as_step_equals_scalar_steps_and_mixes_with_them():
     np.testing.assert_allclose(mix.position, ref.position, rtol=0, atol=1e-12)
     np.testing.assert_allclose(mix.dv_sf, ref.dv_sf, rtol=0, atol=1e-15)
     np.testing.assert_allclose(b['dv_sf'][-1], ref.dv_sf, rtol=0, atol=1e-15)
+
+
+def test_stationary_compiled_run_equals_the_vectorised_one():
+    """``StationaryStrapdown.run`` (compiled loop) and ``run_vectorised`` (numpy prefix
+    products, the path without numba) on a swaying still base, in filter-sized blocks."""
+    from sins_align_ros.nav.mechanization import StationaryStrapdown
+    sim = ImuSimulator(TRAJECTORIES['sway'], ImuSpec(gyro_bias_dph=0.5, accel_bias_ug=100.0,
+                                                     accel_vrw_ug_rthz=20.0), 100.0, seed=2)
+    e0, _, p0 = sim.initial_truth()
+    c = sim.next_chunk(3000)
+    for coriolis in (False, True):
+        a = StationaryStrapdown(euler_to_dcm(e0), *p0, coriolis=coriolis)
+        b = StationaryStrapdown(euler_to_dcm(e0), *p0, coriolis=coriolis)
+        for i in range(0, 3000, 10):
+            ra = a.run(c.dtheta[i:i + 10], c.dv[i:i + 10], 0.01)
+            rb = b.run_vectorised(c.dtheta[i:i + 10], c.dv[i:i + 10], 0.01)
+            np.testing.assert_allclose(ra['C_b_n'], rb['C_b_n'], rtol=0, atol=1e-13)
+            np.testing.assert_allclose(ra['v_n'], rb['v_n'], rtol=0, atol=1e-11)
+        assert a._steps == b._steps == 3000

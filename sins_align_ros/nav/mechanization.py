@@ -393,8 +393,19 @@ class StationaryStrapdown(Strapdown):
     def run(self, dtheta, dv, dt):
         """Process N samples; return ``{'C_b_n': (N, 3, 3), 'v_n': (N, 3)}``.
 
-        ``dt`` is a float or (N,) array of sample intervals.
+        ``dt`` is a float or (N,) array of sample intervals. With the compiled kernels
+        this is :meth:`Strapdown.run`'s loop (the stationary filters give blocks of a
+        few samples, where a compiled loop is several times faster than numpy's batched
+        calls); without, :meth:`run_vectorised`. The two agree to round-off
+        (test_mechanization.py).
         """
+        if kernels.COMPILED:
+            out = Strapdown.run(self, dtheta, dv, dt)
+            return {'C_b_n': out['C_b_n'], 'v_n': out['v_n']}
+        return self.run_vectorised(dtheta, dv, dt)
+
+    def run_vectorised(self, dtheta, dv, dt):
+        """:meth:`run` in numpy batch operations (prefix products), without numba."""
         dtheta = np.asarray(dtheta, dtype=float)
         dv = np.asarray(dv, dtype=float)
         n = len(dtheta)
