@@ -139,6 +139,41 @@ def test_one_sample_at_a_time_equals_one_batch_on_a_moving_base(fine_filter):
         assert np.allclose(batch.nav[fine], single.nav[fine], rtol=0, atol=1e-9, equal_nan=True)
 
 
+@pytest.mark.parametrize('extra', [0, 37])
+def test_a_prediction_that_fails_ends_the_stage_wherever_it_falls_in_a_block(extra):
+    """The block path stops at a prediction that diverges, also on a block's last sample.
+
+    A car aligned with ``kf`` to 60 s, then samples without GNSS whose 2 s prediction
+    (``aided.MAX_PREDICT``) is made to fail: the rows end at that sample, the reason is
+    given, and the last rows are FINE (as the one-sample path does).
+    """
+    from types import SimpleNamespace
+    from sins_align_ros.align import aided
+    from sins_align_ros.align.gnss_gate import FilterDiverged
+    sc = scenario('seed003_car', duration=100.0)
+    b = ScenarioStream(sc, seed=2).next_block(10000)
+    p = AlignmentPipeline(alignment_params(sc, 'kf', coarse_duration=40.0))
+    p.start_clock(0.0)
+    head = SimpleNamespace(t=b.imu.t[:6000], dtheta=b.imu.dtheta[:6000], dv=b.imu.dv[:6000])
+    g = b.gnss
+    keep = g.t <= b.imu.t[5999]
+    cut = {k: getattr(g, k)[keep] for k in ('t', 'lat', 'lon', 'h', 'v_n', 'fix')}
+    feed_arrays(p, head, SimpleNamespace(**cut, pos_cov=g.pos_cov, vel_cov=g.vel_cov))
+    eng = p.engine
+    assert p.fine is not None and not eng.restages and not p.gnss.pending
+    t, dth, dv = b.imu.t[6000:], b.imu.dtheta[6000:], b.imu.dv[6000:]
+    T = eng.sums.T + np.cumsum(np.diff(np.r_[p.clock.t_last, t]))
+    k_fail = int(np.flatnonzero(T >= aided.MAX_PREDICT)[0])
+
+    def fail():
+        raise FilterDiverged('made to fail')
+    eng.predict = fail
+    n = k_fail + 1 + extra                              # extra 0: the block's last sample
+    parts, end, reason = p.fine.run(t[:n], dth[:n], dv[:n], 0, p.gnss)
+    assert reason == 'made to fail' and end == k_fail + 1
+    assert parts[-1].phase == FINE and parts[-1].t[-1] == t[k_fail]
+
+
 def test_gnss_fix_sets_the_latitude():
     sc, st, b = simulate('static_navigation', seconds=5.0)
     p = AlignmentPipeline({'initial_latitude_deg': 10.0, 'coarse_duration': 2.0})

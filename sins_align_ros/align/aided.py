@@ -29,6 +29,9 @@ from .gnss_gate import FilterDiverged
 
 #: the longest interval the error model is propagated without a measurement, s
 MAX_PREDICT = 2.0
+#: samples looked ahead at a time by :meth:`GnssAidedEngine.step_block` for the next
+#: prediction (bounds its work on a long stretch without GNSS)
+STRETCH = 4096
 #: variance of an angle known to be anywhere in (-pi, pi] (uniform), rad^2
 ANGLE_UNKNOWN_VAR = math.pi ** 2 / 3.0
 #: seconds over which an inflation's process-noise floor would add the state's variance
@@ -282,9 +285,9 @@ class GnssAidedEngine(PriorShaping):
         predicted = []
         i = 0
         while i < n:
-            T = np.cumsum(np.r_[self.sums.T, dt[i:]])[1:]
-            over = np.flatnonzero(T >= MAX_PREDICT)
-            j = i + int(over[0]) + 1 if len(over) else n
+            w = dt[i:i + STRETCH]
+            over = np.flatnonzero(np.cumsum(np.r_[self.sums.T, w])[1:] >= MAX_PREDICT)
+            j = i + (int(over[0]) + 1 if len(over) else len(w))
             dth, dvc = self._correct_imu(dtheta[i:j], dv[i:j], dt[i:j, None])
             out = self.mech.run(dth, dvc, dt[i:j], as_step=True)
             self.sums.add_block(out, dt[i:j])

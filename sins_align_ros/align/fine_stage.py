@@ -203,7 +203,7 @@ class FineStage:
             if nav is not None:
                 nav[k:last + 1] = blk.nav
             c.t_last = t[last]
-            for e in [k + p for p in blk.predicted] + ([last] if blk.end < end - k else []):
+            for e in [k + p for p in blk.predicted] + ([last] if blk.reason is not None else []):
                 if e == last and blk.reason is not None:       # diverged in a prediction
                     Cs[e] = m.C_b_n
                     if nav is not None:
