@@ -14,7 +14,9 @@ predicts without an update, so an outage only widens the covariance.
 :mod:`.moving`, seed 004's 12 :mod:`.robust`, seeds 001/003's 15/18
 :mod:`.navigation`) builds its filter and supplies the hooks ``_transition``,
 ``measurement`` and ``_feedback`` (and optionally ``_correct_imu``,
-``_set_process_noise``, ``_interval_ended``).
+``_set_process_noise``, ``_interval_ended``). Its mixins hold the other jobs: what is
+done to the prior before the first epoch (:class:`PriorShaping`) and the consistency
+monitor's remedies (:class:`ConsistencyRemedies`).
 """
 import math
 from dataclasses import dataclass
@@ -201,7 +203,64 @@ class PriorShaping:
         return P0
 
 
-class GnssAidedEngine(PriorShaping):
+class ConsistencyRemedies:
+    """What the consistency monitor (:mod:`.consistency`) and the pipeline ask of an engine.
+
+    A mixin of :class:`GnssAidedEngine`, whose ``kf``, ``Qc``, ``R_scale``, ``adaptive``,
+    ``i_phi``, ``i_v`` and process-noise bookkeeping (``_Qc0``, ``_held``) it uses.
+    """
+
+    def inflate(self, factor):
+        """Inflate the process noise by ``factor`` (up to 1e4x) and the covariance by its root.
+
+        The consistency monitor's remedy for innovations larger than the filter predicts
+        (:mod:`.consistency`): the state is less certain than the filter thought, and its
+        model drives it too little. The covariance takes only the square root of the
+        factor: the NIS ratio measures the innovation covariance, which a too-small Q
+        keeps too small at every epoch, so most of the remedy belongs in Q; a full jump
+        of P by up to 10x at each failed window threw the attitude of a GNSS-aided
+        filter out of its small-angle model (seed 003's car with default parameters).
+        States the model holds constant (zero Qc) get the process noise that would add
+        ``factor - 1`` times their variance over :data:`INFLATION_SPAN` seconds, since
+        a zero cannot be scaled.
+        """
+        P = self.kf.P * math.sqrt(factor)
+        self.kf.P = cap_angles(P, np.arange(len(P))[self.i_phi])
+        # states the model holds constant (zero process noise) get some: the model
+        # error may be theirs (a bias that varies, a constant one larger than its prior)
+        floor = (factor - 1.0) * np.diag(self.kf.P) / INFLATION_SPAN
+        self.Qc = np.where(self._held, np.maximum(self.Qc, floor),
+                           np.minimum(self.Qc * factor, self._Qc0 * 1e4))
+        if self.adaptive:
+            self.kf.Q = self.kf.Q * factor
+
+    def relax(self):
+        """Halve the process noise raised by :meth:`inflate` back towards the model's.
+
+        (An adaptive filter's own Q estimate is left to its estimator.)
+        """
+        self.Qc = np.where(self._held, 0.5 * self.Qc, np.maximum(0.5 * self.Qc, self._Qc0))
+
+    def inflate_noise(self, factors):
+        """Inflate measurement rows' noise variances: ``factors`` row -> factor.
+
+        The consistency monitor's remedy when the innovations are larger than predicted
+        but white (the receiver is noisier than configured). Capped at
+        :data:`MAX_NOISE_SCALE`; no effect on filters that estimate R themselves.
+        """
+        for r, f in factors.items():
+            self.R_scale[r] = min(self.R_scale[r] * f, MAX_NOISE_SCALE)
+
+    def widen(self, var_phi, var_v):
+        """Add ``var_phi`` (rad^2) to each misalignment and ``var_v`` to each velocity variance."""
+        P = self.kf.P
+        k = np.arange(len(P))
+        P[k[self.i_phi], k[self.i_phi]] += var_phi
+        P[k[self.i_v], k[self.i_v]] += var_v
+        self.kf.P = P
+
+
+class GnssAidedEngine(PriorShaping, ConsistencyRemedies):
     """Mechanization + error-state filter at GNSS epochs; see the module docstring.
 
     Parameters
@@ -448,55 +507,6 @@ class GnssAidedEngine(PriorShaping):
         s = np.ones(3)
         s[2] = math.sqrt(v_pub / v)
         return P * np.outer(s, s)
-
-    def inflate(self, factor):
-        """Inflate the process noise by ``factor`` (up to 1e4x) and the covariance by its root.
-
-        The consistency monitor's remedy for innovations larger than the filter predicts
-        (:mod:`.consistency`): the state is less certain than the filter thought, and its
-        model drives it too little. The covariance takes only the square root of the
-        factor: the NIS ratio measures the innovation covariance, which a too-small Q
-        keeps too small at every epoch, so most of the remedy belongs in Q; a full jump
-        of P by up to 10x at each failed window threw the attitude of a GNSS-aided
-        filter out of its small-angle model (seed 003's car with default parameters).
-        States the model holds constant (zero Qc) get the process noise that would add
-        ``factor - 1`` times their variance over :data:`INFLATION_SPAN` seconds, since
-        a zero cannot be scaled.
-        """
-        P = self.kf.P * math.sqrt(factor)
-        self.kf.P = cap_angles(P, np.arange(len(P))[self.i_phi])
-        # states the model holds constant (zero process noise) get some: the model
-        # error may be theirs (a bias that varies, a constant one larger than its prior)
-        floor = (factor - 1.0) * np.diag(self.kf.P) / INFLATION_SPAN
-        self.Qc = np.where(self._held, np.maximum(self.Qc, floor),
-                           np.minimum(self.Qc * factor, self._Qc0 * 1e4))
-        if self.adaptive:
-            self.kf.Q = self.kf.Q * factor
-
-    def relax(self):
-        """Halve the process noise raised by :meth:`inflate` back towards the model's.
-
-        (An adaptive filter's own Q estimate is left to its estimator.)
-        """
-        self.Qc = np.where(self._held, 0.5 * self.Qc, np.maximum(0.5 * self.Qc, self._Qc0))
-
-    def inflate_noise(self, factors):
-        """Inflate measurement rows' noise variances: ``factors`` row -> factor.
-
-        The consistency monitor's remedy when the innovations are larger than predicted
-        but white (the receiver is noisier than configured). Capped at
-        :data:`MAX_NOISE_SCALE`; no effect on filters that estimate R themselves.
-        """
-        for r, f in factors.items():
-            self.R_scale[r] = min(self.R_scale[r] * f, MAX_NOISE_SCALE)
-
-    def widen(self, var_phi, var_v):
-        """Add ``var_phi`` (rad^2) to each misalignment and ``var_v`` to each velocity variance."""
-        P = self.kf.P
-        k = np.arange(len(P))
-        P[k[self.i_phi], k[self.i_phi]] += var_phi
-        P[k[self.i_v], k[self.i_v]] += var_v
-        self.kf.P = P
 
     def status(self):
         """Filter internals for diagnostics (plain Python types)."""
