@@ -111,6 +111,17 @@ def degenerate(C):
             'window (gyro or accelerometer output near zero?)')
 
 
+def run(window, cfg, noise, position, gnss, t_now, aided):
+    """Coarse alignment for the filter family: :func:`moving_base` or :func:`still_base`.
+
+    ``aided``: the fine filter is GNSS-aided. Returns ``(CoarseResult or None, info,
+    reason)``.
+    """
+    if aided:
+        return moving_base(window, cfg, noise, position, gnss, t_now)
+    return still_base(window, cfg, noise, position)
+
+
 def still_base(window, cfg, noise, position):
     """Coarse alignment for the stationary filters: (CoarseResult or None, info, reason)."""
     tt, dth, dvv, dts = window

@@ -285,13 +285,8 @@ class AlignmentPipeline:
             # stationary filter, chosen by the user or by auto) there is no GNSS
             self._self_check(window, at_rest=not m.moving and (m.speed is not None
                                                                or not self.aided))
-        if self.aided:
-            res, info, reason = coarse_stage.moving_base(window, self.cfg, self.noise,
-                                                         self.position, self.gnss,
-                                                         self.clock.t_last)
-        else:
-            res, info, reason = coarse_stage.still_base(window, self.cfg, self.noise,
-                                                        self.position)
+        res, info, reason = coarse_stage.run(window, self.cfg, self.noise, self.position,
+                                             self.gnss, self.clock.t_last, self.aided)
         self.coarse_info = info
         if reason is not None:
             self._diverged(reason)
@@ -311,9 +306,9 @@ class AlignmentPipeline:
             self.cfg.update(self.check.widened)
             self.noise = noise_spec(self.cfg)
         self.warnings.extend(self.check.findings)
-        if not self.check.heading_observable and (at_rest or not self.aided):
-            self.warnings.append(self_check.NO_HEADING_YET if self.aided
-                                 else self_check.NO_HEADING)
+        warning = self_check.heading_warning(self.check, at_rest, self.aided)
+        if warning:
+            self.warnings.append(warning)
 
     def _start_engine(self, start):
         c = self.check

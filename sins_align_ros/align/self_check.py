@@ -113,6 +113,17 @@ NO_HEADING_YET = ('heading unobservable at rest: the gyro bias is not small agai
                   'base moving (then alignment restarts from coarse, with the GNSS track)')
 
 
+def heading_warning(check, at_rest, aided):
+    """Return the warning a failed Earth-rate check gives, or None.
+
+    Only where the gyro would have to find north: at rest, or for a stationary filter.
+    ``aided``: a GNSS-aided filter, whose heading motion may still make observable later.
+    """
+    if check.heading_observable or not (at_rest or not aided):
+        return None
+    return NO_HEADING_YET if aided else NO_HEADING
+
+
 @dataclass
 class SelfCheck:
     """Outcome of :func:`check`.
