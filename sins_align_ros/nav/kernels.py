@@ -80,12 +80,12 @@ def _rodrigues(x, y, z, R):
 
 
 @jit
-def _earth(lat, h, cached, ec):
+def earth_terms(lat, h, cached, ec):
     """``(sin, cos, tan, R_M, R_N, g)`` at ``lat``, ``h``; ``cached``: through ``ec`` (8,).
 
     ``ec`` holds ``(lat, h, sin, cos, tan, R_M, R_N, g)`` of the last evaluation (``lat``
     NaN: none), refreshed when the latitude moved by more than 1e-7 rad or the height by
-    more than 0.01 m, as ``Strapdown._earth_cache``.
+    more than 0.01 m; ``Strapdown.step`` uses it through ``Strapdown._earth_cache``.
     """
     if cached and ec[0] == ec[0] and abs(lat - ec[0]) <= 1e-7 and abs(h - ec[1]) <= 0.01:
         return ec[2], ec[3], ec[4], ec[5], ec[6], ec[7]
@@ -133,7 +133,7 @@ def strapdown_run(C, v, v_prev, pos, pos_prev, dth_prev, dv_prev, steps, dtheta,
     :class:`~.mechanization.MechanizationOptions` flags. ``cached`` False:
     :meth:`~.mechanization.Strapdown.update`'s arithmetic (Earth terms at every sample);
     True: :meth:`~.mechanization.Strapdown.step`'s (Earth terms through the cache ``ec``,
-    :func:`_earth`). Output, per sample: ``C_out`` (N, 3, 3), ``v_out`` (N, 3),
+    :func:`earth_terms`). Output, per sample: ``C_out`` (N, 3, 3), ``v_out`` (N, 3),
     ``pos_out`` (N, 3) and ``dvsf_out`` (N, 3), the specific-force increment in ENU.
     Returns the new ``steps``.
     """
@@ -158,7 +158,7 @@ def strapdown_run(C, v, v_prev, pos, pos_prev, dth_prev, dv_prev, steps, dtheta,
             h_m = 1.5 * h - 0.5 * pos_prev[2]
         else:
             lat_m, h_m = lat, h
-        sl, cl, tl, RM, RN, g = _earth(lat_m, h_m, cached, ec)
+        sl, cl, tl, RM, RN, g = earth_terms(lat_m, h_m, cached, ec)
         ie1, ie2 = OMEGA_IE * cl, OMEGA_IE * sl
         if transport_rate:
             en0 = -m1 / (RM + h_m)
@@ -253,6 +253,7 @@ def warm_up():
     z = np.zeros((2, 3))
     attitude_increments(z, np.empty((2, 3, 3)))
     rodrigues9(0.0, 0.0, 0.0)                       # the scalar path's entry points
+    earth_terms(0.5, 0.0, True, np.full(8, np.nan))
     coning_sculling(*([0.0] * 12))
     for cached in (False, True):
         strapdown_run(np.eye(3), np.zeros(3), np.zeros(3), np.array([0.5, 0.0, 0.0]),

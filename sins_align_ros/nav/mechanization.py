@@ -96,6 +96,8 @@ class Strapdown:
         self._pos_prev = np.array([self.lat, self.lon, self.h])
         self._steps = 0
         self.dv_sf = np.zeros(3)
+        #: Earth-term cache of the scalar path (lat, h, sin, cos, tan, R_M, R_N, g; NaN: none)
+        self._ec = np.full(8, np.nan)
 
     @property
     def position(self):
@@ -272,12 +274,12 @@ class Strapdown:
         return self.C_b_n
 
     def _earth_cache(self, lat, h):
-        c = getattr(self, '_ec', None)
-        if c is None or abs(lat - c[0]) > 1e-7 or abs(h - c[1]) > 0.01:
-            R_M, R_N = earth.radii(lat)
-            self._ec = c = (lat, h, (math.sin(lat), math.cos(lat), math.tan(lat), float(R_M),
-                                     float(R_N), float(earth.gravity(lat, h))))
-        return c[2]
+        """``(sin, cos, tan, R_M, R_N, g)`` at ``lat``, ``h`` through the cache ``_ec`` (8,).
+
+        Refreshed when the latitude moves by more than 1e-7 rad or the height by more than
+        0.01 m (:func:`~.kernels.earth_terms`, which the compiled loop shares).
+        """
+        return kernels.earth_terms(lat, h, True, self._ec)
 
     def run(self, dtheta, dv, dt, as_step=False):
         """Process N samples and record the state after each.
@@ -313,8 +315,7 @@ class Strapdown:
         state = [np.array(a, dtype=float) for a in (
             self.C_b_n, self.v_n, self._v_prev, self.position, self._pos_prev,
             self._dtheta_prev, self._dv_prev)]
-        c = getattr(self, '_ec', None) if as_step else None
-        ec = np.full(8, np.nan) if c is None else np.array([c[0], c[1], *c[2]])
+        ec = self._ec if as_step else np.full(8, np.nan)
         self._steps = kernels.strapdown_run(
             *state, self._steps, dtheta, dv, dt, opt.transport_rate, opt.update_position,
             opt.coriolis, opt.hold_vertical, bool(as_step), ec, out['C_b_n'], out['v_n'],
@@ -323,8 +324,6 @@ class Strapdown:
          self._dv_prev) = state
         self.lat, self.lon, self.h = (float(x) for x in pos)
         self.dv_sf = out['dv_sf'][-1].copy()
-        if as_step and ec[0] == ec[0]:
-            self._ec = (float(ec[0]), float(ec[1]), tuple(float(x) for x in ec[2:]))
         return out
 
 
