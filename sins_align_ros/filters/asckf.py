@@ -14,12 +14,11 @@ Generic: ``fx(x)`` and ``hx(x)`` act on one state vector.
 from collections import deque
 
 import numpy as np
-from scipy.stats import chi2
 
 from .adaptive import SageHusa, StrongTracking
 from .base import measurement_rows
 from .cubature import chol_lower, sqrt_psd, srckf_predict, srckf_update, tria
-from .kf import nis
+from .kf import chi2_quantile, nis
 
 
 def lag1_correlation(w):
@@ -153,7 +152,7 @@ class ASCKF:
             W = np.asarray(hist)[1:]
             self.white = not (len(hist) > L and lag1_correlation(hist) > r_min)
             apply = (apply and not self.white
-                     and float(np.sum(W * W)) > chi2.ppf(0.99, W.size))
+                     and float(np.sum(W * W)) > chi2_quantile(0.99, W.size))
         if not apply:
             self.lam = np.ones_like(self.lam)
         if self.var_max is not None:

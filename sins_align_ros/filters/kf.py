@@ -7,7 +7,7 @@ from functools import lru_cache
 
 import numpy as np
 from scipy.linalg import expm
-from scipy.stats import chi2
+from scipy.special import chdtri
 
 #: winsorisation bound of an innovation squared, in predicted variances (99.9% of chi2(1))
 CLIP = 10.83
@@ -65,5 +65,10 @@ def nis(y, S):
 
 @lru_cache(maxsize=None)
 def chi2_quantile(probability, dof):
-    """Chi-square quantile of ``probability`` for ``dof`` degrees of freedom (cached)."""
-    return float(chi2.ppf(probability, dof))
+    """Chi-square quantile of ``probability`` for ``dof`` degrees of freedom (cached).
+
+    ``scipy.special.chdtri`` (the inverse survival function) rather than
+    ``scipy.stats.chi2.ppf``: the same number, without importing scipy.stats (0.3 s of
+    every process start).
+    """
+    return float(chdtri(dof, 1.0 - probability))
