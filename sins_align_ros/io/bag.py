@@ -63,13 +63,8 @@ def _match(connections, name, msgtype, required):
     return found
 
 
-def iter_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='sim/truth',
-             vel_topic='gnss/vel'):
-    """Yield :class:`BagEvent` in recording order from a rosbag2 folder or .mcap file.
-
-    Raises :class:`BagError` for a missing IMU topic, a wrong message type or an
-    unreadable bag (also part-way through: the caller keeps what came before).
-    """
+def _open(path):
+    """Return an opened rosbags ``AnyReader`` on ``path``; :class:`BagError` if it cannot be."""
     try:
         from rosbags.highlevel import AnyReader
     except ImportError:   # pragma: no cover - depends on the installation
@@ -82,43 +77,136 @@ def iter_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='
         reader.open()
     except Exception as exc:          # rosbags raises several types for bad input
         raise BagError(f'{path}: not a readable rosbag2: {exc}') from None
+    return reader
+
+
+def _topics(reader, imu_topic, fix_topic, truth_topic, vel_topic):
+    """Return the connections ``(imu, fix, truth, vel)``; truth and vel None: not read."""
+    c = reader.connections
+    return (_match(c, imu_topic, IMU_TYPE, True), _match(c, fix_topic, FIX_TYPE, False),
+            _match(c, truth_topic, ODOM_TYPE, False) if truth_topic else [],
+            _match(c, vel_topic, VEL_TYPE, False) if vel_topic else [])
+
+
+def iter_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='sim/truth',
+             vel_topic='gnss/vel'):
+    """Yield :class:`BagEvent` in recording order from a rosbag2 folder or .mcap file.
+
+    Raises :class:`BagError` for a missing IMU topic, a wrong message type or an
+    unreadable bag (also part-way through: the caller keeps what came before).
+    """
+    reader = _open(path)
     try:
-        imu = _match(reader.connections, imu_topic, IMU_TYPE, True)
-        fix = _match(reader.connections, fix_topic, FIX_TYPE, False)
-        truth = _match(reader.connections, truth_topic, ODOM_TYPE, False)
-        vel = _match(reader.connections, vel_topic, VEL_TYPE, False) if vel_topic else []
-        kinds = {c.id: k for k, cs in (('imu', imu), ('fix', fix), ('truth', truth),
-                                       ('vel', vel)) for c in cs}
+        imu, fix, truth, vel = _topics(reader, imu_topic, fix_topic, truth_topic, vel_topic)
         try:
             for conn, _, raw in reader.messages(connections=imu + fix + truth + vel):
-                msg = reader.deserialize(raw, conn.msgtype)
-                kind = kinds[conn.id]
-                if kind == 'imu':
-                    w, a = msg.angular_velocity, msg.linear_acceleration
-                    missing = bool(msg.angular_velocity_covariance[0] == -1.0
-                                   or msg.linear_acceleration_covariance[0] == -1.0)
-                    yield BagEvent('imu', _stamp(msg.header), (
-                        (w.x, w.y, w.z), (a.x, a.y, a.z), msg.header.frame_id, missing))
-                elif kind == 'fix':
-                    c = msg.position_covariance
-                    pos_var = (None if msg.position_covariance_type == 0
-                               else (float(c[0]), float(c[4])))
-                    yield BagEvent('fix', _stamp(msg.header), (
-                        int(msg.status.status), msg.latitude, msg.longitude, msg.altitude,
-                        pos_var))
-                elif kind == 'vel':
-                    v, c = msg.twist.twist.linear, msg.twist.covariance
-                    yield BagEvent('vel', _stamp(msg.header), (
-                        (v.x, v.y, v.z), (float(c[0]), float(c[7]))))
-                else:
-                    q = msg.pose.pose.orientation
-                    yield BagEvent('truth', _stamp(msg.header), ((q.x, q.y, q.z, q.w),))
+                yield _event(reader, conn, raw)
         except BagError:
             raise
         except Exception as exc:
             raise BagError(f'{path}: bag is truncated or corrupt: {exc}') from None
     finally:
         reader.close()
+
+
+@dataclass
+class BagRecording:
+    """A bag read at once: the IMU as arrays, everything else as :class:`BagEvent`.
+
+    ``t`` (N,), ``w`` (N, 3), ``f`` (N, 3) and ``missing`` (N,) are the IMU messages in
+    recording order (as ``iter_bag``'s imu events; ``frame_id`` is not kept);
+    ``events`` the fix, velocity and truth messages in recording order and
+    ``imu_before`` (len(events),) how many IMU messages came before each, so that the
+    two interleave exactly as recorded. ``error``: why reading stopped early (a
+    truncated or corrupt bag: what came before is kept), else None.
+    """
+
+    t: np.ndarray
+    w: np.ndarray
+    f: np.ndarray
+    missing: np.ndarray
+    events: list
+    imu_before: np.ndarray
+    error: str = None
+
+
+def read_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='sim/truth',
+             vel_topic='gnss/vel'):
+    """Read a rosbag2 folder or .mcap file at once into a :class:`BagRecording`.
+
+    The fast path of :func:`iter_bag` for replaying a whole recording: the raw messages
+    are read without deserialising, the IMU decoded in bulk (:mod:`.cdr`), the few GNSS
+    and truth messages one by one with rosbags (as are IMU messages the bulk decoder
+    does not take). ``truth_topic`` None: truth not read. The same
+    :class:`BagError` rules as :func:`iter_bag`, except that a fault part-way through
+    is returned in ``error`` with what was read before it.
+    """
+    from .cdr import decode_imu
+    reader = _open(path)
+    raws, events, before, error = [], [], [], None
+    try:
+        imu, fix, truth, vel = _topics(reader, imu_topic, fix_topic, truth_topic, vel_topic)
+        imu_ids = {c.id for c in imu}
+        try:
+            for conn, _, raw in reader.messages(connections=imu + fix + truth + vel):
+                if conn.id in imu_ids:
+                    raws.append(raw)
+                else:
+                    events.append((conn, raw))
+                    before.append(len(raws))
+        except Exception as exc:
+            error = f'{path}: bag is truncated or corrupt: {exc}'
+        t, w, f, missing, ok = decode_imu(raws)
+        before = np.asarray(before, dtype=int)
+        n_imu, n_ev = len(raws), len(events)
+        for k in np.flatnonzero(~ok):               # what the bulk decoder left
+            try:
+                msg = reader.deserialize(raws[k], IMU_TYPE)
+            except Exception as exc:
+                error = f'{path}: bag is truncated or corrupt: {exc}'
+                n_imu, n_ev = int(k), int(np.searchsorted(before, k, side='right'))
+                break
+            t[k] = _stamp(msg.header)
+            w[k], f[k], missing[k] = _imu_fields(msg)[:3]
+        decoded = []
+        for j, (conn, raw) in enumerate(events[:n_ev]):
+            try:
+                decoded.append(_event(reader, conn, raw))
+            except Exception as exc:
+                error = f'{path}: bag is truncated or corrupt: {exc}'
+                n_imu = min(n_imu, int(before[j]))
+                break
+    finally:
+        reader.close()
+    return BagRecording(t[:n_imu], w[:n_imu], f[:n_imu], missing[:n_imu], decoded,
+                        before[:len(decoded)], error)
+
+
+def _imu_fields(msg):
+    """``(w, f, missing, frame_id)`` of a deserialised Imu message."""
+    w, a = msg.angular_velocity, msg.linear_acceleration
+    missing = bool(msg.angular_velocity_covariance[0] == -1.0
+                   or msg.linear_acceleration_covariance[0] == -1.0)
+    return (w.x, w.y, w.z), (a.x, a.y, a.z), missing, msg.header.frame_id
+
+
+def _event(reader, conn, raw):
+    """Return the :class:`BagEvent` of one deserialised message."""
+    msg = reader.deserialize(raw, conn.msgtype)
+    t = _stamp(msg.header)
+    if conn.msgtype == IMU_TYPE:
+        w, f, missing, frame = _imu_fields(msg)
+        return BagEvent('imu', t, (w, f, frame, missing))
+    if conn.msgtype == FIX_TYPE:
+        c = msg.position_covariance
+        pos_var = None if msg.position_covariance_type == 0 else (float(c[0]), float(c[4]))
+        return BagEvent('fix', t, (int(msg.status.status), msg.latitude, msg.longitude,
+                                   msg.altitude, pos_var))
+    if conn.msgtype == VEL_TYPE:
+        v, c = msg.twist.twist.linear, msg.twist.covariance
+        return BagEvent('vel', t, ((v.x, v.y, v.z), (float(c[0]), float(c[7]))))
+    q = msg.pose.pose.orientation
+    return BagEvent('truth', t, ((q.x, q.y, q.z, q.w),))
 
 
 def write_scenario_bag(path, sc, seed=0, duration=None, start_time=1_700_000_000.0,
