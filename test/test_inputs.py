@@ -188,3 +188,77 @@ def test_gnss_epochs_beyond_the_pending_queue_are_counted_and_reported():
         p.position_fix(t + 0.05 * (k + 1), 45.7796, 126.6705, 0.0)
     assert p.gnss_counts['queue_full'] == 5
     assert any('5 GNSS epoch(s) dropped' in c for _, c in p.conditions())
+
+
+def _faulty_ship_stream():
+    """120 s of the seed 000 ship at 50 Hz with every IMU fault in its own window."""
+    s = _ship_stream(120.0, seed=5)
+    faults = ('imu_nan', 'imu_inf', 'imu_repeated', 'imu_out_of_order', 'imu_dropped',
+              'imu_saturated', 'imu_missing_field', 'imu_gap', 'imu_rate_change')
+    for k, fault in enumerate(faults):
+        t0 = 8.0 + 10.0 * k
+        inject(s, fault, t0, t0 + (0.3 if fault in ('imu_dropped', 'imu_gap') else 2.0),
+               gyro_range=np.radians(300.0))
+    return s
+
+
+def test_push_run_leaves_the_checker_as_push_does_sample_by_sample():
+    s = _faulty_ship_stream()
+    t, w, f = s.imu['t'], s.imu['w'], s.imu['f']
+    a, b = ImuInput(0.5, gyro_range=np.radians(300.0)), ImuInput(0.5, gyro_range=np.radians(300.0))
+    one = [a.push(t[k], w[k], f[k]) for k in range(len(t))]
+    k, runs, got = 0, 0, []
+    while k < len(t):
+        n, dth, dv = b.push_run(t[k:], w[k:], f[k:])
+        if n:
+            runs += 1
+            got += [(OK, dth[i], dv[i]) for i in range(n)]
+            k += n
+        else:
+            got.append(b.push(t[k], w[k], f[k]))
+            k += 1
+    assert runs > 50 and a.counts == b.counts and a.t_last == b.t_last
+    assert a.dt_nominal == b.dt_nominal and list(a._dts) == list(b._dts)
+    assert [g[0] for g in got] == [o[0] for o in one]
+    for g, o in zip(got, one):
+        if o[0] == OK:
+            assert np.array_equal(g[1], o[1]) and np.array_equal(g[2], o[2])
+
+
+def test_imu_block_gives_the_rows_and_counts_of_imu_sample_by_sample():
+    """The replay's block path against the node's one-sample path, faults included."""
+    from sins_align_ros.align.output import Output
+    from sins_align_ros.align.session import AlignmentSession
+    s = _faulty_ship_stream()
+    params = {'fine_filter': 'asckf', 'gnss_pos_sigma_m': 1.0, 'gyro_range_dps': 300.0,
+              'coarse_duration': 5.0}
+    one, blk = AlignmentSession(params, block=500), AlignmentSession(params, block=500)
+    outs1, outs2, pending = [], [], []
+    imu, g = s.imu, s.gnss
+
+    def flush():
+        if pending:
+            k = np.array(pending)
+            outs2.append(blk.imu_block(imu['t'][k], imu['w'][k], imu['f'][k], imu['missing'][k]))
+            pending.clear()
+
+    for kind, i in s.events():
+        if kind == 'imu':
+            outs1.append(one.reject_missing_field() if imu['missing'][i]
+                         else one.imu(imu['t'][i], imu['w'][i], imu['f'][i]))
+            pending.append(i)
+            continue
+        flush()
+        for sess, outs in ((one, outs1), (blk, outs2)):
+            outs.append(sess.fix(g['t'][i], g['status'][i], g['lat_deg'][i], g['lon_deg'][i],
+                                 g['h'][i], g['pos_var'][i]))
+    flush()
+    o1 = Output.concat(outs1 + [one.finish()])
+    o2 = Output.concat(outs2 + [blk.finish()])
+    assert one.input_counts() == blk.input_counts()
+    c = one.input_counts()[0]
+    assert min(c['field_missing'], c['gap'], c['bridged'], c['nan'], c['saturated']) > 0, c
+    assert np.array_equal(o1.t, o2.t) and list(o1.phase) == list(o2.phase)
+    ok = np.isfinite(o1.q[:, 0])
+    assert ok.sum() > 1000 and np.array_equal(ok, np.isfinite(o2.q[:, 0]))
+    assert np.abs(o1.q[ok] - o2.q[ok]).max() < 1e-12

@@ -150,6 +150,44 @@ class ImuInput:
             return OK, 0.5 * (w_b + w_prev) * dt, 0.5 * (f_b + f_prev) * dt
         return OK, w_b * dt, f_b * dt
 
+    def push_run(self, t, w_b, f_b):
+        """Accept the longest leading run of samples :meth:`push` would take as plain OK.
+
+        ``t`` (N,), ``w_b``, ``f_b`` (N, 3). A sample ends the run when :meth:`push`
+        would do anything else with it (the first sample of a clock, a bad value, a
+        saturated component, a stamp not increasing, a gap, a bridge) or when the
+        nominal rate is due to be re-estimated (every :data:`RATE_WINDOW` accepted
+        samples); the caller gives that sample to :meth:`push`. The state afterwards is
+        exactly as if :meth:`push` had taken each sample of the run.
+
+        Returns ``(n, dtheta, dv)``: the run's length (0: give ``t[0]`` to
+        :meth:`push`) and its increments ((n, 3) each).
+        """
+        if self.t_last is None or self.dt_nominal is None or len(t) == 0:
+            return 0, None, None
+        until = RATE_WINDOW - self.counts['accepted'] % RATE_WINDOW - 1
+        m = min(len(t), until)
+        if m <= 0:
+            return 0, None, None
+        t = np.asarray(t[:m], dtype=float)
+        w_b = np.asarray(w_b[:m], dtype=float)
+        f_b = np.asarray(f_b[:m], dtype=float)
+        dt = np.diff(t, prepend=self.t_last)
+        good = (np.isfinite(t) & np.isfinite(w_b).all(axis=1) & np.isfinite(f_b).all(axis=1)
+                & (np.abs(w_b).max(axis=1) < 0.999 * self.gyro_range)
+                & (np.abs(f_b).max(axis=1) < 0.999 * self.accel_range)
+                & (dt > 0.0) & (dt <= self.max_gap) & ~(dt > 1.5 * self.dt_nominal))
+        n = m if good.all() else int(np.argmin(good))
+        if n == 0:
+            return 0, None, None
+        dt = dt[:n]
+        self.t_last = float(t[n - 1])
+        self._wf_prev = (w_b[n - 1].copy(), f_b[n - 1].copy())
+        self.counts['accepted'] += n
+        self._dts.extend(dt.tolist())
+        self.bridge = None
+        return n, w_b[:n] * dt[:, None], f_b[:n] * dt[:, None]
+
     def _reset(self, key, reason):
         self.counts[key] += 1
         self.last_reason = reason

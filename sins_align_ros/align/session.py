@@ -65,7 +65,9 @@ class AlignmentSession:
         #: restarts since the last :meth:`pop_events`: ``(level, text)``
         self.events = []
         self.last = ImuVerdict()
+        #: buffered accepted samples: ``(t, dtheta, dv)`` of one sample or of a run
         self._buf = []
+        self._n_buf = 0
 
     # -- parameters and restarts -------------------------------------------------------
     def restart(self, reason, level='info', values=None, restart_clock=True):
@@ -107,8 +109,7 @@ class AlignmentSession:
             if self.imu_input.bridge is not None:
                 before = self._drain()
                 self.pipeline.widen(*self.imu_input.bridge)
-            self._buf.append((t, dtheta, dv))
-            out = self._drain() if len(self._buf) >= self.block else Output.empty()
+            out = self._buffer((t, dtheta, dv), 1)
             return out if before is None else Output.concat([before, out])
         if action == SKIP:
             return Output.empty()
@@ -118,6 +119,34 @@ class AlignmentSession:
                                                    restart_clock=False)])
         self.pipeline.start_clock(t)
         return out
+
+    def imu_block(self, t, w_b, f_b, missing=None):
+        """Take N IMU samples at once: the same as :meth:`imu` on each, in order.
+
+        ``t`` (N,), ``w_b``, ``f_b`` (N, 3); ``missing`` (N,) bool or None: samples the
+        message marked as not provided (counted as :meth:`reject_missing_field`). Runs of
+        plain samples pass the checks vectorised (``ImuInput.push_run``); anything else
+        goes through :meth:`imu`. Returns the rows produced.
+        """
+        n = len(t)
+        holes = np.flatnonzero(missing) if missing is not None else np.zeros(0, dtype=int)
+        outs, k = [], 0
+        while k < n:
+            h = int(np.searchsorted(holes, k))
+            end = int(holes[h]) if h < len(holes) else n
+            if end == k:
+                outs.append(self.reject_missing_field())
+                k += 1
+                continue
+            m, dtheta, dv = self.imu_input.push_run(t[k:end], w_b[k:end], f_b[k:end])
+            if m:
+                self.last = ImuVerdict(OK)
+                outs.append(self._buffer((t[k:k + m], dtheta, dv), m))
+                k += m
+            else:
+                outs.append(self.imu(t[k], w_b[k], f_b[k]))
+                k += 1
+        return Output.concat(outs)
 
     def reject_imu(self, key, text):
         """Count an IMU message the caller found unusable (wrong frame, missing field)."""
@@ -153,17 +182,24 @@ class AlignmentSession:
         """Process what is buffered and what the pre-processing stage holds (end of input)."""
         return Output.concat([self._drain(), self.pipeline.flush()])
 
+    def _buffer(self, entry, n):
+        """Buffer ``n`` accepted samples; feed the buffer once it holds ``block``."""
+        self._buf.append(entry)
+        self._n_buf += n
+        return self._drain() if self._n_buf >= self.block else Output.empty()
+
     def _drain(self):
         """Feed the buffered samples to the pipeline; returns their rows."""
         if not self._buf:
             return Output.empty()
-        if len(self._buf) == 1:
+        if len(self._buf) == 1 and np.ndim(self._buf[0][0]) == 0:
             t, dtheta, dv = self._buf[0]
         else:
-            t = np.array([b[0] for b in self._buf])
-            dtheta = np.array([b[1] for b in self._buf])
-            dv = np.array([b[2] for b in self._buf])
+            t = np.concatenate([np.atleast_1d(b[0]) for b in self._buf])
+            dtheta = np.concatenate([np.reshape(b[1], (-1, 3)) for b in self._buf])
+            dv = np.concatenate([np.reshape(b[2], (-1, 3)) for b in self._buf])
         self._buf.clear()
+        self._n_buf = 0
         return self.pipeline.feed(t, dtheta, dv)
 
     # -- read-outs ------------------------------------------------------------------------

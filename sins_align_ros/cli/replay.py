@@ -19,7 +19,7 @@ from ..align import params as prm
 from ..align.output import Output
 from ..align.pipeline import AlignmentPipeline
 from ..align.session import AlignmentSession
-from ..io.bag import BagError, iter_bag
+from ..io.bag import BagError, read_bag
 from ..io.psins import PsinsFormatError, read_psins
 from ..io.report import plot_report
 from ..io.results import write_csv
@@ -86,16 +86,23 @@ def replay_psins(path, values, log, duration=None):
     return Output.concat([out, pipe.flush()]), pipe, None
 
 
-def replay_bag(path, values, args, log):
+def replay_bag(path, values, args, log, with_truth=True):
     """Run a rosbag2 through an :class:`AlignmentSession`; returns (Output, pipeline, truth).
 
-    ``truth`` is a list of (t, q) or empty. IMU and GNSS messages pass the node's input
-    checks (the first occurrence of each reason is logged, the counts at the end). A
-    fault part-way through raises :class:`BagError` with ``.partial`` set to the
-    (Output, pipeline, truth) computed so far.
+    ``truth`` is a list of (t, q) or empty (``with_truth`` False: not read). IMU and GNSS
+    messages pass the node's input checks (the first occurrence of each reason is
+    logged, the counts at the end), in recording order; the IMU between two GNSS
+    messages goes in as one block (``AlignmentSession.imu_block``). A fault part-way
+    through raises :class:`BagError` with ``.partial`` set to the (Output, pipeline,
+    truth) computed from what came before it.
     """
+    rec = read_bag(path, args.imu_topic, args.fix_topic,
+                   truth_topic='sim/truth' if with_truth else None, vel_topic=args.vel_topic)
     session = AlignmentSession(values, block=_CHUNK)
     outs, truth, seen = [], [], set()
+    n, events = len(rec.t), rec.events
+    if args.duration is not None:
+        n, events = _first_seconds(rec, args.duration)
 
     def report():
         for source, key, text in session.notices():
@@ -103,29 +110,26 @@ def replay_bag(path, values, args, log):
                 seen.add((source, key))
                 log(f'{source}: {text} (first occurrence; counted at the end)')
 
+    def imu(k0, k1):
+        if k1 > k0:
+            outs.append(session.imu_block(rec.t[k0:k1], rec.w[k0:k1], rec.f[k0:k1],
+                                          rec.missing[k0:k1]))
+            report()
+
     try:
-        t_end = None
-        for ev in iter_bag(path, args.imu_topic, args.fix_topic, vel_topic=args.vel_topic):
-            if t_end is None and args.duration is not None:
-                t_end = ev.t + args.duration
-            if t_end is not None and ev.t > t_end + 1e-9:
-                break
-            if ev.kind == 'imu':
-                w, f, _, missing = ev.data
-                outs.append(session.reject_missing_field() if missing
-                            else session.imu(ev.t, w, f))
-            elif ev.kind == 'fix':
+        k = 0
+        for ev, before in zip(events, rec.imu_before):
+            imu(k, min(before, n))
+            k = max(k, min(before, n))
+            if ev.kind == 'fix':
                 outs.append(session.fix(ev.t, *ev.data))
             elif ev.kind == 'vel':
                 outs.append(session.velocity(ev.t, *ev.data))
             else:
                 truth.append((ev.t, ev.data[0]))
             report()
+        imu(k, n)
         outs.append(session.finish())
-    except BagError as exc:
-        outs.append(session.finish())
-        exc.partial = (Output.concat(outs), session.pipeline, truth)
-        raise
     finally:
         imu_counts, gnss_counts = session.input_counts()
         counts = {f'imu {k}': v for k, v in imu_counts.items()
@@ -134,7 +138,31 @@ def replay_bag(path, values, args, log):
                        if not k.startswith('accepted')})
         if counts:
             log('input faults: ' + ', '.join(f'{k} {v}' for k, v in sorted(counts.items())))
-    return Output.concat(outs), session.pipeline, truth
+    result = Output.concat(outs), session.pipeline, truth
+    if rec.error is not None:
+        exc = BagError(rec.error)
+        exc.partial = result
+        raise exc
+    return result
+
+
+def _first_seconds(rec, duration):
+    """Return ``(n_imu, events)``: recording ``rec`` cut at ``duration`` s.
+
+    Up to the first message (of any kind, in recording order) stamped more than
+    ``duration`` after the first message, as the message loop's ``break`` did.
+    """
+    before = rec.imu_before
+    first_is_event = bool(rec.events) and (len(rec.t) == 0 or before[0] == 0)
+    if not first_is_event and len(rec.t) == 0:
+        return 0, []
+    t_end = (rec.events[0].t if first_is_event else rec.t[0]) + duration + 1e-9
+    late = np.flatnonzero(rec.t > t_end)
+    i_cut = int(late[0]) if len(late) else len(rec.t)
+    e_cut = next((j for j, ev in enumerate(rec.events) if ev.t > t_end), None)
+    if e_cut is not None and before[e_cut] <= i_cut:
+        return int(before[e_cut]), rec.events[:e_cut]
+    return i_cut, rec.events[:int(np.searchsorted(before, i_cut, side='right'))]
 
 
 def _truth_euler(out, truth):
@@ -177,7 +205,8 @@ def main(argv=None):
         if Path(args.input).suffix.lower() == '.imu':
             out, pipe, truth = replay_psins(args.input, values, log, args.duration)
         else:
-            out, pipe, truth = replay_bag(args.input, values, args, log)
+            out, pipe, truth = replay_bag(args.input, values, args, log,
+                                          with_truth=bool(args.report))
     except PsinsFormatError as exc:
         print(f'sins_align_replay: error: {exc}', file=sys.stderr)
         return 1
