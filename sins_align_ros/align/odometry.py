@@ -36,15 +36,16 @@ class OdometryFrame:
     def __init__(self):
         self.origin = None
 
-    def sample(self, out, P_nav, w_b, gyro_bias, rate_var):
-        """Return the last row of pipeline output ``out`` as :class:`Odometry`, or None.
+    def sample(self, out, P_nav, w_b, gyro_bias, rate_var, k=-1):
+        """Return row ``k`` (default the last) of pipeline output ``out`` as :class:`Odometry`.
 
         ``P_nav`` (9, 9) position, velocity, misalignment covariance; ``w_b`` (3,) the
         sample's body rate (rad/s, before bias correction); ``gyro_bias`` (3,) rad/s;
-        ``rate_var`` the rate noise variance per axis ((rad/s)^2).
+        ``rate_var`` the rate noise variance per axis ((rad/s)^2). None when the row has
+        no navigation solution or attitude.
         """
-        nav = out.nav[-1]
-        q = out.q[-1]
+        nav = out.nav[k]
+        q = out.q[k]
         if not (np.all(np.isfinite(nav)) and np.isfinite(q[0])):
             return None
         lat, lon, h = nav[:3]
