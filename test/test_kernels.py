@@ -1,0 +1,64 @@
+"""The compiled kernels against the pure-Python reference path, on every fine filter.
+
+``SINS_ALIGN_NO_JIT=1`` makes :mod:`sins_align_ros.nav.kernels` plain Python (the
+reference, also what runs without numba); a child process runs every fine filter that
+way and the results must equal this process's compiled ones to round-off.
+"""
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from conftest import ROOT
+from sins_align_ros.nav import kernels
+
+#: filter -> scenario (as bench/replay_speed.py), 150 s: coarse, then fine
+CASES = {
+    'reduced7': 'static_navigation', 'stationary10': 'static_navigation',
+    'stationary12': 'static_navigation', 'ckf': 'seed000_case1', 'asckf': 'seed000_case1',
+    'vbckf': 'seed004_medium', 'vbch': 'seed004_medium', 'kf': 'seed003_car',
+    'vbakf': 'seed001_flight', 'mvbakf': 'seed001_flight', 'ukf': 'seed003_car',
+    'auto': 'seed003_car',
+}
+
+RUN = """
+import json, sys
+sys.path.insert(0, {root!r})
+import numpy as np
+from sins_align_ros.eval.run import run_pipeline
+from sins_align_ros.eval.scenarios import named, simulate
+from sins_align_ros.nav import kernels
+from sins_align_ros.sim.presets import alignment_params
+res = {{'compiled': kernels.COMPILED}}
+for f, name in {cases!r}.items():
+    sc = named(name, 150.0)
+    out = run_pipeline(alignment_params(sc, f), simulate(sc, 4), block=700).out
+    res[f] = [np.nan_to_num(out.q[-1]).tolist(), np.nan_to_num(out.P_phi[-1]).ravel().tolist(),
+              str(out.phase[-1])]
+print(json.dumps(res))
+"""
+
+
+def _run(no_jit):
+    env = dict(os.environ, OPENBLAS_NUM_THREADS='1')
+    env.pop('SINS_ALIGN_NO_JIT', None)
+    if no_jit:
+        env['SINS_ALIGN_NO_JIT'] = '1'
+    out = subprocess.run([sys.executable, '-c', RUN.format(root=str(ROOT), cases=CASES)],
+                         env=env, check=True, capture_output=True, text=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+@pytest.mark.skipif(not kernels.COMPILED, reason='numba not installed or switched off')
+def test_every_fine_filter_gives_the_same_result_compiled_and_in_pure_python():
+    ref, fast = _run(True), _run(False)
+    assert ref.pop('compiled') is False and fast.pop('compiled') is True
+    for f in CASES:
+        (q0, P0, ph0), (q1, P1, ph1) = ref[f], fast[f]
+        assert ph0 == ph1 and ph0 != 'coarse', f
+        assert np.abs(np.array(q0) - np.array(q1)).max() < 1e-11, f     # measured: 4e-13
+        P0, P1 = np.array(P0), np.array(P1)
+        assert np.abs(P0 - P1).max() <= 1e-9 * np.abs(P0).max(), f      # measured: 1e-12
