@@ -62,3 +62,38 @@ def test_every_fine_filter_gives_the_same_result_compiled_and_in_pure_python():
         assert np.abs(np.array(q0) - np.array(q1)).max() < 1e-11, f     # measured: 4e-13
         P0, P1 = np.array(P0), np.array(P1)
         assert np.abs(P0 - P1).max() <= 1e-9 * np.abs(P0).max(), f      # measured: 1e-12
+
+
+WARM = """
+import sys
+sys.path.insert(0, {root!r})
+from sins_align_ros.nav import kernels
+kernels.warm_up()
+def count():
+    return {{n: len(getattr(kernels, n).signatures) for n in dir(kernels)
+             if hasattr(getattr(kernels, n), 'signatures')}}
+before = count()
+from sins_align_ros.eval.run import run_pipeline
+from sins_align_ros.eval.scenarios import named, simulate
+from sins_align_ros.sim.presets import alignment_params
+for f, name in (('reduced7', 'static_navigation'), ('stationary12', 'static_navigation'),
+                ('asckf', 'seed000_case1'), ('kf', 'seed003_car')):
+    sc = named(name, 65.0)
+    for block in (1, 10):
+        run_pipeline(alignment_params(sc, f), simulate(sc, 1), block=block)
+print(before == count(), before, count())
+"""
+
+
+@pytest.mark.skipif(not kernels.COMPILED, reason='numba not installed or switched off')
+def test_warm_up_compiles_every_signature_the_pipeline_uses():
+    """A live node warms up before it subscribes; a signature left out compiles mid-data.
+
+    (A read-only ``dt`` from ``np.broadcast_to`` made numba compile a second
+    ``strapdown_run`` at the node's first block: a second of stall at 1000 messages/s, and
+    the end-to-end node test saw an IMU gap.)
+    """
+    out = subprocess.run([sys.executable, '-c', WARM.format(root=str(ROOT))], check=True,
+                         capture_output=True, text=True,
+                         env=dict(os.environ, OPENBLAS_NUM_THREADS='1')).stdout
+    assert out.startswith('True'), out

@@ -301,10 +301,12 @@ class Strapdown:
         The loop is :func:`~.kernels.strapdown_run` (compiled), kept equal to
         :meth:`update` and :meth:`step` to round-off (test_mechanization.py).
         """
-        dtheta = np.ascontiguousarray(dtheta, dtype=float)
-        dv = np.ascontiguousarray(dv, dtype=float)
+        # contiguous and writeable: numba compiles a separate version for read-only arrays
+        # (a broadcast dt is one), which cost a live node a second at its first block
+        dtheta = np.require(dtheta, float, ['C', 'W'])
+        dv = np.require(dv, float, ['C', 'W'])
         n = len(dtheta)
-        dt = np.ascontiguousarray(np.broadcast_to(np.asarray(dt, dtype=float), (n,)))
+        dt = np.require(np.broadcast_to(np.asarray(dt, dtype=float), (n,)), float, ['C', 'W'])
         out = {'C_b_n': np.empty((n, 3, 3)), 'v_n': np.empty((n, 3)), 'pos': np.empty((n, 3)),
                'dv_sf': np.empty((n, 3))}
         if n == 0:
