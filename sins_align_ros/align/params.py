@@ -182,8 +182,8 @@ ALIGNMENT_PARAMS = (
 NODE_PARAMS = (
     Param('imu_frame_id', '', 'expected frame_id of imu/data_raw (empty: accept any)'),
     Param('diagnostic_period', 1.0, 'period of /diagnostics, s', 0.05, 60.0),
-    Param('imu_batch_period', 0.01, 'IMU messages wait until the oldest is this old (or a '
-          'GNSS message or a pause in the input comes), then go through the checks and the '
+    Param('imu_batch_period', 0.01, 'IMU messages wait until the first has waited this long '
+          '(wall clock; or a GNSS message comes), then go through the checks and the '
           'filters together; imu/data is still published for every sample. Bounds the '
           'added latency; 0: each message at once, s', 0.0, 0.1, read_only=True),
     Param('odom_frame_id', 'odom', 'frame_id of ~/odom: ENU axes, origin where fine '

@@ -35,6 +35,7 @@ Changing an alignment parameter at runtime (``fine_filter`` included) restarts
 the alignment with it; invalid values are refused with the reason.
 """
 import sys
+import time
 from collections import Counter, deque
 
 import numpy as np
@@ -81,8 +82,9 @@ class AlignmentNode(Node):
         self._period_imu = [0, 0]     # IMU messages received, accepted in this period
         self._events = []
         self.odom = OdometryFrame()
-        #: IMU messages waiting for the batch: (stamp, message)
+        #: IMU messages waiting for the batch: (stamp, message); when the first came (s)
         self._batch = []
+        self._batch_wall = 0.0
         self._euler = Vector3Stamped()          # re-used: publish serialises at the call
         self.add_on_set_parameters_callback(self._check_pipeline_params)
         self.add_post_set_parameters_callback(self._apply_params)
@@ -184,9 +186,11 @@ class AlignmentNode(Node):
                 msg.linear_acceleration_covariance[0] == -1.0):
             self.session.reject_missing_field()
         else:
-            t = stamp_to_sec(msg.header.stamp)
-            self._batch.append((t, msg))
-            if t - self._batch[0][0] < self.p['imu_batch_period']:
+            now = time.monotonic()
+            if not self._batch:
+                self._batch_wall = now
+            self._batch.append((stamp_to_sec(msg.header.stamp), msg))
+            if now - self._batch_wall < self.p['imu_batch_period']:
                 return
             self._flush_imu()
             return
@@ -203,13 +207,16 @@ class AlignmentNode(Node):
             return
         batch, self._batch = self._batch, []
         n = len(batch)
-        t = np.fromiter((b[0] for b in batch), dtype=float, count=n)
         wf = np.array([(m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z,
                         m.linear_acceleration.x, m.linear_acceleration.y,
                         m.linear_acceleration.z) for _, m in batch])
         conv = self.session.imu_input
         skipped, accepted = conv.rejected, conv.counts['accepted']
-        out = self.session.imu_block(t, wf[:, :3], wf[:, 3:])
+        if n == 1:                                   # the one-sample path costs less
+            out = self.session.imu(batch[0][0], wf[0, :3], wf[0, 3:])
+        else:
+            t = np.fromiter((b[0] for b in batch), dtype=float, count=n)
+            out = self.session.imu_block(t, wf[:, :3], wf[:, 3:])
         self._period_imu[1] += n - (conv.rejected - skipped)
         self.counts['imu'] += conv.counts['accepted'] - accepted
         self._recent.extend(batch)
