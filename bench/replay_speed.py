@@ -21,16 +21,11 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from sins_align_ros.eval.markdown import machine_summary  # noqa: E402
+from sins_align_ros.eval.scenarios import FILTER_SCENARIOS  # noqa: E402
 
 SECONDS = 600.0
 #: filter -> the scenario it is timed on
-CASES = {
-    'reduced7': 'static_navigation', 'stationary10': 'static_navigation',
-    'stationary12': 'static_navigation', 'ckf': 'seed000_case1', 'asckf': 'seed000_case1',
-    'vbckf': 'seed004_medium', 'vbch': 'seed004_medium', 'kf': 'seed003_car',
-    'vbakf': 'seed001_flight', 'mvbakf': 'seed001_flight', 'ukf': 'seed003_car',
-    'auto': 'seed003_car',
-}
+CASES = FILTER_SCENARIOS
 
 CHILD = """
 import sys, json

@@ -13,16 +13,11 @@ import numpy as np
 import pytest
 
 from conftest import ROOT
+from sins_align_ros.eval.scenarios import FILTER_SCENARIOS
 from sins_align_ros.nav import kernels
 
-#: filter -> scenario (as bench/replay_speed.py), 150 s: coarse, then fine
-CASES = {
-    'reduced7': 'static_navigation', 'stationary10': 'static_navigation',
-    'stationary12': 'static_navigation', 'ckf': 'seed000_case1', 'asckf': 'seed000_case1',
-    'vbckf': 'seed004_medium', 'vbch': 'seed004_medium', 'kf': 'seed003_car',
-    'vbakf': 'seed001_flight', 'mvbakf': 'seed001_flight', 'ukf': 'seed003_car',
-    'auto': 'seed003_car',
-}
+#: filter -> scenario, run for 150 s: coarse, then fine
+CASES = FILTER_SCENARIOS
 
 RUN = """
 import json, sys

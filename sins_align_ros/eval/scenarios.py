@@ -3,6 +3,17 @@ from ..sim.presets import SENSOR_GRADES, scenario
 from ..sim.scenario import ScenarioStream
 
 
+#: every fine filter (and ``auto``) -> a scenario it applies to, for whole-pipeline timings
+#: and comparisons (bench/replay_speed.py, test_kernels.py)
+FILTER_SCENARIOS = {
+    'reduced7': 'static_navigation', 'stationary10': 'static_navigation',
+    'stationary12': 'static_navigation', 'ckf': 'seed000_case1', 'asckf': 'seed000_case1',
+    'vbckf': 'seed004_medium', 'vbch': 'seed004_medium', 'kf': 'seed003_car',
+    'vbakf': 'seed001_flight', 'mvbakf': 'seed001_flight', 'ukf': 'seed003_car',
+    'auto': 'seed003_car',
+}
+
+
 def named(spec, duration=None):
     """Build scenario ``spec``: a preset name, optionally ``name@grade``.
 
