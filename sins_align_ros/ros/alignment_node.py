@@ -25,10 +25,11 @@ logged at most once per :data:`~.diagnostics.LOG_PERIOD_S` per reason, and raise
 the diagnostic level for the period it happened in: WARN, or ERROR when IMU
 messages arrived but none was usable.
 
-IMU messages are processed in batches (``imu_batch_period``, default 10 ms: at 1 kHz
-ten samples go through the input checks and the compiled filters at once, which cuts
-the node's CPU several times), then published one by one with their own headers; a GNSS
-message, a pause in the input or the period's timer flushes the batch first.
+IMU messages are processed in batches (``imu_batch_period``, default 10 ms of waiting:
+at 1 kHz ten samples go through the input checks and the compiled filters at once,
+which took the node from 0.39 to 0.22 cores with ``asckf``, bench/results/node_load.md),
+then published one by one with their own headers; a GNSS message, a parameter change, a
+reset or the period's timer flushes the batch first.
 
 Service ``~/reset`` (std_srvs/Trigger) restarts the alignment in any phase.
 Changing an alignment parameter at runtime (``fine_filter`` included) restarts
