@@ -178,8 +178,10 @@ def base_velocity_rms(dth, dvv, dts):
     up /= np.linalg.norm(up)
     t = np.cumsum(dts[:m]) - dts[0]
     A = np.column_stack([np.ones(m), t, t * t])
-    Pa = A @ np.linalg.pinv(A)
-    res = V - np.einsum('ij,kjl->kil', Pa, V)
+    # the quadratic fit of each chunk, A (A^+ V): the projector A A^+ itself is (m, m), and
+    # applying it cost m^2 per chunk (3 s of a 1 kHz IMU's coarse end, bench/scaling.py)
+    coef = np.einsum('ij,kjl->kil', np.linalg.pinv(A), V)
+    res = V - np.einsum('ij,kjl->kil', A, coef)
     vert = res @ up
     horiz = res - vert[..., None] * up
     return (math.sqrt(float(np.mean(np.sum(horiz * horiz, axis=-1))) / 2.0),
