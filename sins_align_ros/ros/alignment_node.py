@@ -221,14 +221,14 @@ class AlignmentNode(Node):
         self._period_imu[1] += n - (conv.rejected - skipped)
         self.counts['imu'] += conv.counts['accepted'] - accepted
         self._recent.extend(batch)
-        P_nav = self.pipeline.nav_cov() if out.nav is not None and len(out.t) else None
+        odo_state = self._odometry_state() if out.nav is not None and len(out.t) else None
         for k, t_k in enumerate(out.t):            # each finished sample, its own header
             while len(self._recent) > 1 and self._recent[0][0] < t_k - 1e-9:
                 self._recent.popleft()
             src = self._recent[0][1]
             self._publish(src, out, k)
-            if P_nav is not None:
-                self._publish_odom(src, out, k, P_nav)
+            if odo_state is not None:
+                self._publish_odom(src, out, k, odo_state)
         self._drain()
 
     # -- output ------------------------------------------------------------------------------
@@ -238,13 +238,21 @@ class AlignmentNode(Node):
             self.pub_euler.publish(e)
         self.pub_imu.publish(m)
 
-    def _publish_odom(self, src, out, k, P_nav):
-        """Publish row ``k`` with ``P_nav``, the batch end's (no GNSS update within)."""
+    def _odometry_state(self):
+        """Return the batch end's ``(P_nav, gyro_bias, rate_var)`` for its ~/odom rows.
+
+        No GNSS update happens inside a batch (a GNSS message flushes it first), so the
+        filter's covariance and bias at its end serve every row.
+        """
         pipe = self.pipeline
-        w = src.angular_velocity
         dt = self.session.imu_input.dt_nominal or 0.01
-        odo = self.odom.sample(out, P_nav, np.array([w.x, w.y, w.z]),
-                               pipe.engine.gyro_bias, pipe.noise.gyro_arw ** 2 / dt, k)
+        return pipe.nav_cov(), pipe.engine.gyro_bias, pipe.noise.gyro_arw ** 2 / dt
+
+    def _publish_odom(self, src, out, k, state):
+        """Publish row ``k`` with the batch end's filter ``state`` (:meth:`_odometry_state`)."""
+        P_nav, gyro_bias, rate_var = state
+        w = src.angular_velocity
+        odo = self.odom.sample(out, P_nav, np.array([w.x, w.y, w.z]), gyro_bias, rate_var, k)
         if odo is not None:
             self.pub_odom.publish(odometry_message(src.header.stamp, self.p['odom_frame_id'],
                                                    src.header.frame_id, odo))
