@@ -101,8 +101,6 @@ def iter_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='
         try:
             for conn, _, raw in reader.messages(connections=imu + fix + truth + vel):
                 yield _event(reader, conn, raw)
-        except BagError:
-            raise
         except Exception as exc:
             raise BagError(f'{path}: bag is truncated or corrupt: {exc}') from None
     finally:
