@@ -37,7 +37,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 from sins_align_ros.eval.markdown import machine_summary, write_markdown  # noqa: E402
 from sins_align_ros.eval.scenarios import named  # noqa: E402
-from sins_align_ros.io.bag import iter_bag, write_scenario_bag  # noqa: E402
+from sins_align_ros.io.bag import read_bag, write_scenario_bag  # noqa: E402
 from sins_align_ros.nav.frames import quat_to_euler, yaw_to_heading  # noqa: E402
 from sins_align_ros.sim.presets import alignment_params  # noqa: E402
 
@@ -77,24 +77,16 @@ def pyins_inputs(bag):
     import pandas as pd
     from pyins.inertial_sensor import EstimationModel
     from pyins.measurements import NedVelocity, Position
-    imu_t, w, f, fix, vel, truth = [], [], [], [], [], []
-    for ev in iter_bag(str(bag)):
-        if ev.kind == 'imu':
-            imu_t.append(ev.t)
-            w.append(ev.data[0])
-            f.append(ev.data[1])
-        elif ev.kind == 'fix':
-            fix.append((ev.t, *ev.data[1:4]))
-        elif ev.kind == 'vel':
-            vel.append((ev.t, *ev.data[0]))
-        else:
-            truth.append((ev.t, *ev.data[0]))
-    t = np.array(imu_t)
+    rec = read_bag(str(bag))
+    fix = [(ev.t, *ev.data[1:4]) for ev in rec.events if ev.kind == 'fix']
+    vel = [(ev.t, *ev.data[0]) for ev in rec.events if ev.kind == 'vel']
+    truth = [(ev.t, *ev.data[0]) for ev in rec.events if ev.kind == 'truth']
+    t, w, f = rec.t, rec.w, rec.f
     t0 = t[0]
     dt = np.diff(t, prepend=t[0] - 1.0 / RATE_HZ)
     flu_to_frd = np.array([1.0, -1.0, -1.0])
-    inc = pd.DataFrame(np.column_stack([dt, np.array(w) * flu_to_frd * dt[:, None],
-                                        np.array(f) * flu_to_frd * dt[:, None]]),
+    inc = pd.DataFrame(np.column_stack([dt, w * flu_to_frd * dt[:, None],
+                                        f * flu_to_frd * dt[:, None]]),
                        index=t - t0, columns=['dt', 'theta_x', 'theta_y', 'theta_z',
                                               'dv_x', 'dv_y', 'dv_z'])
     fix = np.array(fix)
