@@ -22,7 +22,8 @@ from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus  # noqa: E402
 
 from conftest import spin_until  # noqa: E402
 from sins_align_ros.nav import earth  # noqa: E402
-from sins_align_ros.nav.frames import nav_to_euler, quat_to_euler  # noqa: E402
+from sins_align_ros.nav.frames import (euler_to_dcm, nav_to_euler,  # noqa: E402
+                                       quat_to_euler)
 from sins_align_ros.ros.alignment_node import AlignmentNode  # noqa: E402
 from sins_align_ros.ros.conversions import stamp_to_ns  # noqa: E402
 from sins_align_ros.ros.runner import stop_processes  # noqa: E402
@@ -162,6 +163,53 @@ def test_invalid_parameters_are_refused_with_a_reason(ros_context):
     assert res.successful and node.pipeline.aided
     res = node.set_parameters([Parameter('fine_filter', value='vbch')])[0]
     assert res.successful and node.pipeline.aided
+    res = node.set_parameters([Parameter('gnss_lever_arm_m', value=[1.0, 2.0])])[0]
+    assert not res.successful and 'array of 3' in res.reason
+    res = node.set_parameters([Parameter('gnss_lever_arm_m', value=[-12.0, 3.0, 18.0])])[0]
+    assert res.successful
+    assert node.pipeline.configured['gnss_lever_arm_m'] == (-12.0, 3.0, 18.0)
+    assert not node.pipeline.install.no_arm
+
+
+def test_rotated_imu_gives_the_vehicle_attitude_in_base_link(ros_context):
+    """imu_mounting_rpy_deg: imu/data in base_link, its rates and attitude the vehicle's."""
+    from sins_align_ros.sim.presets import ROBOT_IMU_MOUNTING_RPY_DEG
+    C_s_v = euler_to_dcm(np.radians(ROBOT_IMU_MOUNTING_RPY_DEG))
+    node = AlignmentNode(context=ros_context, parameter_overrides=[
+        Parameter('imu_mounting_rpy_deg', value=list(ROBOT_IMU_MOUNTING_RPY_DEG)),
+        Parameter('coarse_duration', value=5.0), Parameter('fine_filter', value='reduced7'),
+        Parameter('initial_latitude_deg', value=34.0)])
+    sim = SimulatorNode(context=ros_context, parameter_overrides=[
+        Parameter('scenario', value='seed003_car_rotated'), Parameter('start_time', value=10.0),
+        Parameter('real_time_factor', value=5.0)])
+    rec = Recorder(ros_context)
+    out = []
+    qos = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
+    rec.node.create_subscription(Imu, 'imu/data', out.append, qos)
+    ex = SingleThreadedExecutor(context=ros_context)
+    for n in (node, sim, rec.node):
+        ex.add_node(n)
+    assert spin_until(ex, lambda: len(out) > 1000 and out[-1].orientation_covariance[0] > 0,
+                      timeout_s=40.0)
+    assert {m.header.frame_id for m in out} == {'base_link'}
+    assert {m.header.frame_id for m in rec.msgs['imu']} == {'imu_link'}
+    raw = {stamp_to_ns(m.header.stamp): m for m in rec.msgs['imu']}
+    both = [m for m in out if stamp_to_ns(m.header.stamp) in raw]
+    assert len(both) > 500
+    for m in both[::50]:
+        r = raw[stamp_to_ns(m.header.stamp)]
+        w_s = [r.angular_velocity.x, r.angular_velocity.y, r.angular_velocity.z]
+        f_s = [r.linear_acceleration.x, r.linear_acceleration.y, r.linear_acceleration.z]
+        w_v = [m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z]
+        f_v = [m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z]
+        assert np.allclose(w_v, C_s_v @ w_s, atol=1e-12)
+        assert np.allclose(f_v, C_s_v @ f_s, atol=1e-12)
+    # the car stands still for 30 s, level: the vehicle's roll and pitch are near zero
+    # (the IMU's own roll would be 90 deg)
+    q = out[-1].orientation
+    roll, pitch, _ = quat_to_euler([q.x, q.y, q.z, q.w])
+    assert abs(roll) < 1.0 * DEG and abs(pitch) < 1.0 * DEG
+    ex.shutdown()
 
 
 def test_moving_base_diagnostics_carry_the_asckf_internals(ros_context):
@@ -368,7 +416,8 @@ def test_config_files_load_into_the_nodes(path, domain_id):
             cls = {'alignment_node': AlignmentNode, 'simulator_node': SimulatorNode}[node_name]
             node = cls(context=ctx)
             for name, value in body['ros__parameters'].items():
-                assert node.get_parameter(name).value == value
+                got = node.get_parameter(name).value
+                assert (list(got) if isinstance(value, list) else got) == value
             node.destroy_node()
     finally:
         ctx.try_shutdown()

@@ -115,5 +115,9 @@ def test_every_config_yaml_loads_and_is_valid(path):
         for name, value in values.items():
             assert name in params, f'{path.name}: unknown parameter {name}'
             p = params[name]
-            assert type(value) is type(p.default), f'{name}: {type(value)} != {type(p.default)}'
+            if p.is_array:          # a YAML list: rclpy declares a double array from it
+                assert isinstance(value, list) and all(type(v) is float for v in value), name
+            else:
+                assert type(value) is type(p.default), (
+                    f'{name}: {type(value)} != {type(p.default)}')
             assert p.check(value) is None, p.check(value)

@@ -88,7 +88,9 @@ class GnssFix:
     """One GNSS epoch: position (rad, rad, m), optional ENU velocity (3,) and variances.
 
     ``pos_var`` (2,): east and north position variance (m^2) the receiver reports,
-    or None; ``vel_var`` (2,): east and north velocity variance ((m/s)^2) or None.
+    or None; ``vel_var`` (2,): east and north velocity variance ((m/s)^2) or None;
+    ``arm_var`` (6,): variance per ENU axis, position then velocity, that moving the
+    epoch from the antenna to the IMU may have left (:mod:`.installation`), or None.
     """
 
     t: float
@@ -98,6 +100,7 @@ class GnssFix:
     v_n: np.ndarray = None
     pos_var: np.ndarray = None
     vel_var: np.ndarray = None
+    arm_var: np.ndarray = None
 
 
 class IntervalSums:
@@ -291,6 +294,9 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies):
     restages = False
     #: the model estimates the accelerometer bias (else bias / g is added to the tilt)
     has_accel_bias = True
+    #: the ENU axis of each row of the full measurement vector: 0-2 position E, N, U,
+    #: 3-5 velocity E, N, U (where a lever arm's variance ``GnssFix.arm_var`` goes)
+    MEAS_ENU = np.array([0, 1, 3, 4])
 
     def __init__(self, C_b_n, v_n, lat, lon, h, kf, Qc, R, rows, gate, use_velocity=False,
                  attitude_sums=False, adaptive=False, use_reported_cov=False):
@@ -429,10 +435,15 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies):
             if self.sets_R:
                 s = np.sqrt(self.R_scale)
                 R = R * np.outer(s, s)
+            if fix.arm_var is not None:
+                R[np.diag_indices(len(R))] += fix.arm_var[self.MEAS_ENU]
             kf.R = R
+        arm = self._lend_arm_noise(fix)
         max_nis = self.gate.threshold(len(idx), kf)
         try:
             upd = kf.step(fx, z, hx, idx, max_nis=max_nis)
+            if arm is not None:
+                self._return_arm_noise(arm)
             self.last_nis = nis(upd.y, upd.Pzz)
             self.last_dof = len(upd.y)
             self.last_u = upd.y / np.sqrt(np.diag(upd.Pzz))
@@ -451,6 +462,29 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies):
         self.gate.accepted()
         self._feedback(fix)
         return upd
+
+    def _lend_arm_noise(self, fix):
+        """Add a lever arm's variance to an adaptive filter's R for one epoch (or None).
+
+        The filters that set R take ``fix.arm_var`` into it above; a Sage-Husa filter's R
+        is its estimate, so the known part is lent for the update and taken back after it
+        (:meth:`_return_arm_noise`): the estimator learns the noise beyond it. (The
+        variational-Bayes filters' R is their posterior; they learn the arm's noise.)
+        """
+        if fix.arm_var is None or self.sets_R or self.use_reported_cov or getattr(
+                self.kf, 'estimates_R', False):
+            return None
+        arm = fix.arm_var[self.MEAS_ENU]
+        self.kf.R = self.kf.R + np.diag(arm)
+        return arm
+
+    def _return_arm_noise(self, arm):
+        """Take back what :meth:`_lend_arm_noise` lent, keeping the diagonal positive."""
+        R = self.kf.R
+        d = np.diag(R)
+        R = R - np.diag(arm)
+        R[np.diag_indices(len(R))] = np.maximum(np.diag(R), 1e-3 * (d - arm).clip(0) + 1e-12)
+        self.kf.R = R
 
     def feed(self, imu, gnss, t0):
         """Run samples 1..N-1 of ``imu`` (``t``, ``dtheta``, ``dv``) from stamp ``t0 = imu.t[0]``.

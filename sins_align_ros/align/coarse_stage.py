@@ -68,6 +68,11 @@ class CoarseWindow:
         return tt, dth, dvv, np.diff(np.concatenate([[t_first], tt]))
 
 
+#: fits of the moving-base coarse alignment that move the GNSS velocity to the IMU with
+#: the previous fit's attitude (a lever arm)
+ARM_PASSES = 2
+
+
 def coarse_sigma(noise, T, lat, moving, cap=30.0 * DEG):
     """Conservative 1-sigma misalignment (3,) rad after coarse alignment over T seconds.
 
@@ -111,14 +116,15 @@ def degenerate(C):
             'window (gyro or accelerometer output near zero?)')
 
 
-def run(window, cfg, noise, position, gnss, t_now, aided):
+def run(window, cfg, noise, position, gnss, t_now, aided, install=None):
     """Coarse alignment for the filter family: :func:`moving_base` or :func:`still_base`.
 
-    ``aided``: the fine filter is GNSS-aided. Returns ``(CoarseResult or None, info,
-    reason)``.
+    ``aided``: the fine filter is GNSS-aided; ``install`` the
+    :class:`~.installation.Installation` (its lever arm). Returns ``(CoarseResult or None,
+    info, reason)``.
     """
     if aided:
-        return moving_base(window, cfg, noise, position, gnss, t_now)
+        return moving_base(window, cfg, noise, position, gnss, t_now, install)
     return still_base(window, cfg, noise, position)
 
 
@@ -145,11 +151,19 @@ def still_base(window, cfg, noise, position):
                         warnings=[warning] if warning else []), info, None
 
 
-def moving_base(window, cfg, noise, position, gnss, t_now):
+def moving_base(window, cfg, noise, position, gnss, t_now, install=None):
     """Coarse alignment for the GNSS-aided filters: (CoarseResult or None, info, reason).
 
     ``gnss`` is the :class:`~.gnss_buffer.GnssBuffer`; ``t_now`` the last IMU stamp (the
-    position is moved from the last fix's stamp to it).
+    position is moved from the last fix's stamp to it). With a GNSS lever arm
+    (``install``), the GNSS velocity is the antenna's: a first fit takes the arm's
+    velocity on the specific-force side (:func:`~sins_align_ros.nav.coarse.inertial_frame`,
+    ``arm_b``), needing no attitude; its attitude gives the arm's velocity at every IMU
+    sample, which is taken off each GNSS velocity at its own stamp (:data:`ARM_PASSES`
+    times, each with the last fit's attitude). The IMU's velocity, smoother than the
+    antenna's sway, is then interpolated as without an arm (interpolating the antenna's
+    1 Hz velocity over a 7 s sway left 0.1 m/s and 15' of tilt), and moves the position
+    to the IMU too.
     """
     tt, dth, dvv, dts = window
     lat, lon, h = position
@@ -160,10 +174,20 @@ def moving_base(window, cfg, noise, position, gnss, t_now):
     # weighed with the sigmas the filter will use (a receiver's reported covariance for
     # seed 000's family): a configured 0.1 m against reported, and real, 1 m fixes took
     # a still base's noisy fix velocities for motion and turned the heading by 6 deg
-    V, v_sig, v_src = gnss.velocity_over(tt, *gnss.sigmas_over(tt, cfg))
+    sigmas = gnss.sigmas_over(tt, cfg)
+    V, v_sig, v_src = gnss.velocity_over(tt, *sigmas)
+    C_arm = None
+    if V is not None and install is not None and not install.no_arm:
+        C_arm, V = _arm_to_imu(window, lat, h, gnss, sigmas, cfg, install, V)
+        reason = degenerate(C_arm)
+        if reason:
+            return None, info, reason
     steady = V is not None and steady_velocity(V, v_sig)
     dv_n = None if V is None or steady else V - V[0]
-    C = coarse.inertial_frame(dth, dvv, dts, lat, h, dv_n=dv_n)
+    if C_arm is not None and dv_n is not None:
+        C = C_arm                          # the fit with the arm where it is exact
+    else:
+        C = coarse.inertial_frame(dth, dvv, dts, lat, h, dv_n=dv_n)
     reason = degenerate(C)
     if reason:
         return None, info, reason
@@ -190,12 +214,51 @@ def moving_base(window, cfg, noise, position, gnss, t_now):
     if gnss.last_fix is not None and cfg['use_gnss_position']:
         t_f = gnss.last_fix[0]
         R_M, R_N = earth.radii(lat)
-        lat += v_end[1] * (t_now - t_f) / (R_M + h)
-        lon += v_end[0] * (t_now - t_f) / ((R_N + h) * math.cos(lat))
+        # the antenna's position at the fix, moved to now; then to the IMU
+        arm_n = np.zeros(3) if install is None else C @ install.l_v
+        lat += (v_end[1] * (t_now - t_f) - arm_n[1]) / (R_M + h)
+        lon += (v_end[0] * (t_now - t_f) - arm_n[0]) / ((R_N + h) * math.cos(lat))
+        h -= arm_n[2]
     info.update({'velocity_source': v_src, 'heading_source': head_src, 'speed_mps': speed,
                  'steady_velocity': bool(steady)})
     s_v = 0.5 if v_sig is None else max(2.0 * v_sig, 0.02)
     return CoarseResult(C, sigma, np.array([lat, lon, h]), v_end, s_v, info, warnings), info, None
+
+
+def _arm_to_imu(window, lat, h, gnss, sigmas, cfg, install, V):
+    """Coarse attitude with a GNSS lever arm, and the IMU's velocity at stamps ``tt`` (N, 3).
+
+    The fit (:func:`~sins_align_ros.nav.coarse.inertial_frame` with ``arm_b``) at the
+    samples of the GNSS velocity stamps, where the antenna's velocity is measured rather
+    than interpolated across its sway. Its attitude, with the heading of the IMU's track
+    when the base moves fast enough (the fit's own heading is weak on a moving base),
+    gives the arm's velocity at every sample; that is taken off each GNSS velocity at
+    its own stamp before the velocity is interpolated to the samples
+    (:data:`ARM_PASSES` times). Returns ``(C_b_n, V)``.
+    """
+    tt, dth, dvv, dts = window
+    stamps = gnss.velocity_stamps(tt)
+    e = np.unique(np.clip(np.searchsorted(tt, stamps - 1e-6), 0, len(tt) - 1))
+    e = e[e >= len(tt) // 10]
+    if len(e) < 3:
+        e = None
+    C = coarse.inertial_frame(dth, dvv, dts, lat, h, dv_n=V - V[0], arm_b=install.l_v,
+                              epochs=e)
+    if degenerate(C):
+        return C, V
+    C_head = C
+    for _ in range(ARM_PASSES):
+        arm_n = install.window_arm_velocity_n(C_head, dth, dts)
+
+        def to_imu(t_v, V_v, arm_n=arm_n):
+            return V_v - np.column_stack([np.interp(t_v, tt, arm_n[:, i]) for i in range(3)])
+
+        V = gnss.velocity_over(tt, *sigmas, correct=to_imu)[0]
+        if math.hypot(V[-1, 0], V[-1, 1]) >= cfg['track_min_speed_mps']:
+            eul = dcm_to_euler(C)
+            eul[2] = math.atan2(V[-1, 1], V[-1, 0])
+            C_head = euler_to_dcm(eul)
+    return C, V
 
 
 def _info(method, moving, rate_sc, tilt_sc, T):

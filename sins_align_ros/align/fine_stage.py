@@ -54,11 +54,17 @@ class FineStage:
 
     ``floor`` (3,) variances (rad^2) added to the engine's attitude covariance;
     ``clock`` the pipeline's :class:`Clock` (its ``t_last`` is advanced here);
-    ``tilt_bound`` the least roll/pitch variance (rad^2) while the heading is unknown.
+    ``tilt_bound`` the least roll/pitch variance (rad^2) while the heading is unknown;
+    ``install`` the :class:`~.installation.Installation` (each GNSS epoch is moved from
+    the antenna to the IMU with the attitude and rate of the sample it is applied at) and
+    ``noise`` the sensor model (NoiseSpec) whose gyro error that move takes into account.
     """
 
-    def __init__(self, engine, floor, clock, cfg, heading_known=True, tilt_bound=0.0):
+    def __init__(self, engine, floor, clock, cfg, heading_known=True, tilt_bound=0.0,
+                 install=None, noise=None):
         self.engine = engine
+        self.install = install
+        self.noise = noise
         self.heading_known = bool(heading_known)
         #: least roll/pitch variance (rad^2) while the heading is unknown
         self.tilt_bound = float(tilt_bound)
@@ -83,6 +89,13 @@ class FineStage:
     @property
     def mech(self):
         return self.engine.mech
+
+    def rate_var(self, dt):
+        """Variance per axis ((rad/s)^2) of one sample's measured rate over ``dt`` seconds.
+
+        The gyro bias and the white noise of the configured (self-checked) model.
+        """
+        return self.noise.gyro_bias ** 2 + self.noise.gyro_arw ** 2 / dt
 
     def attitude_cov(self):
         """Misalignment covariance about ENU (3, 3) with the floor; cached between epochs."""
@@ -219,7 +232,7 @@ class FineStage:
                 if e > start:
                     cut(e, self.attitude_cov(), self.phase)
                     start = e
-                reason = self._apply_gnss(t[e], gnss)
+                reason = self._apply_gnss(t[e], gnss, dtheta[e], dt[-1])
                 Cs[e] = m.C_b_n
                 if reason is not None:         # diverged: the stage ends at this row
                     if nav is not None:
@@ -253,7 +266,7 @@ class FineStage:
             if reason is None and eng.n_predict_only != n_pred:    # the sigma grew
                 self._att_cov = None
             if reason is None and gnss.due(t):
-                reason = self._apply_gnss(t, gnss)
+                reason = self._apply_gnss(t, gnss, dtheta, dt)
                 C = eng.mech.C_b_n
             if reason is not None:                   # diverged: the stage ends at this row
                 nav = np.full((1, 6), np.nan) if self.navigating else None
@@ -264,12 +277,21 @@ class FineStage:
             nav = np.array([[m.lat, m.lon, m.h, m.v_n[0], m.v_n[1], m.v_n[2]]])
         return one_row(t, C, self.attitude_cov(), self.phase, nav), None
 
-    def _apply_gnss(self, t_now, gnss):
-        """Give the engine every queued epoch up to ``t_now``; the reason if it diverged."""
+    def _apply_gnss(self, t_now, gnss, dtheta, dt):
+        """Give the engine every queued epoch up to ``t_now``; the reason if it diverged.
+
+        ``dtheta`` (3,) rad and ``dt`` s: the increment of the sample at ``t_now`` (its rate
+        moves the epochs from the antenna to the IMU, :mod:`.installation`).
+        """
         while True:
             fix = gnss.pop_due(t_now, self.t0)
             if fix is None:
                 return None
+            if self.install is not None and not self.install.no_arm:
+                dt = max(float(dt), 1e-6)
+                fix = self.install.fix_to_imu(fix, self.engine.mech.C_b_n,
+                                              np.asarray(dtheta) / dt, self.attitude_cov(),
+                                              self.rate_var(dt))
             try:
                 upd = self.engine.update(fix, t_now)
             except FilterDiverged as exc:

@@ -178,18 +178,22 @@ class GnssBuffer:
         pos, vel = self.reported_over(tt[0] - 2.0, tt[-1] + 2.0)
         return gnss_sigma(cfg, 'gnss_vel_sigma_mps', vel), gnss_sigma(cfg, 'gnss_pos_sigma_m', pos)
 
-    def velocity_over(self, tt, vel_sigma, pos_sigma):
+    def velocity_over(self, tt, vel_sigma, pos_sigma, correct=None):
         """GNSS velocity at stamps ``tt`` (N, 3), its 1-sigma (m/s) and source; or (None, ...).
 
         From gnss/vel when at least two messages cover the window (sigma
         ``vel_sigma``), else from the fixes by a least-squares slope over +-3 epochs
-        (sigma from ``pos_sigma``).
+        (sigma from ``pos_sigma``). ``correct(t, V) -> V``, if given, is applied to the
+        velocities at their own stamps before they are interpolated to ``tt`` (the
+        lever arm's velocity: it sways faster than the GNSS rate samples it well).
         """
         lo, hi = tt[0] - 2.0, tt[-1] + 2.0
         vels = [(tv, v) for tv, v, _ in self.vels if lo <= tv <= hi]
         if len(vels) >= 2 and vels[0][0] <= tt[0] + 2.0 and vels[-1][0] >= tt[-1] - 2.0:
             tv = np.array([a for a, _ in vels])
             V = np.array([b for _, b in vels])
+            if correct is not None:
+                V = correct(tv, V)
             out = np.column_stack([np.interp(tt, tv, V[:, i]) for i in range(3)])
             return out, vel_sigma, 'gnss_velocity'
         fixes = [f for f in self.fixes if lo <= f[0] <= hi]
@@ -208,10 +212,19 @@ class GnssBuffer:
             vv.append((tc @ (enu[sl] - enu[sl].mean(axis=0))) / (tc @ tc))
             vt.append(tf[i])
         vt, vv = np.array(vt), np.array(vv)
+        if correct is not None:
+            vv = correct(vt, vv)
         out = np.column_stack([np.interp(tt, vt, vv[:, i]) for i in range(3)])
         dt_fix = float(np.median(np.diff(tf)))
         sig = pos_sigma * math.sqrt(12.0 / (2 * w + 1) / ((2 * w + 1) ** 2 - 1)) / dt_fix
         return out, sig, 'gnss_positions'
+
+    def velocity_stamps(self, tt):
+        """Stamps (M,) in ``tt``'s span of what :meth:`velocity_over` reads: gnss/vel or fixes."""
+        vels = [v[0] for v in self.vels if tt[0] <= v[0] <= tt[-1]]
+        if len(vels) >= 2:
+            return np.array(vels)
+        return np.array([f[0] for f in self.fixes if tt[0] <= f[0] <= tt[-1]])
 
     def speed_over(self, tt, vel_sigma, pos_sigma):
         """Largest horizontal GNSS speed (m/s) over stamps ``tt`` and its noise; or None, None."""

@@ -31,13 +31,19 @@ NEEDS_GNSS = ('the IMU shows the base moving (it {what}) and there is no GNSS: a
               'or an external heading; coarse alignment starts again')
 
 
-def gnss_motion(gnss, cfg, tt):
+def gnss_motion(gnss, cfg, tt, arm_speed=0.0):
     """Return ``(moving, speed)`` over stamps ``tt`` (``speed`` m/s, None without GNSS).
 
-    ``gnss`` is the :class:`~.gnss_buffer.GnssBuffer`, ``cfg`` the parameter values.
+    ``gnss`` is the :class:`~.gnss_buffer.GnssBuffer`, ``cfg`` the parameter values;
+    ``arm_speed`` (m/s) the largest speed of the GNSS antenna about the IMU over the span
+    (a lever arm on a rolling mast): the IMU moves at least ``speed - arm_speed``, and
+    that is what is judged (and returned).
     """
     speed, v_sig = gnss.speed_over(tt, *gnss.sigmas_over(tt, cfg))
-    return speed is not None and speed > max(cfg['motion_speed_mps'], 4.0 * v_sig), speed
+    if speed is None:
+        return False, None
+    speed = max(speed - arm_speed, 0.0)
+    return speed > max(cfg['motion_speed_mps'], 4.0 * v_sig), speed
 
 
 def choose_filter(cfg, moving):
@@ -47,16 +53,17 @@ def choose_filter(cfg, moving):
     return cfg['auto_moving_filter' if moving else 'auto_still_filter']
 
 
-def watch(gnss, cfg, t, aided, heading_known):
+def watch(gnss, cfg, t, aided, heading_known, arm_speed=0.0):
     """Return why a running filter must restart now that GNSS shows motion, or None.
 
     A stationary filter cannot take motion; an aided filter started at rest without a
     heading (a gyro that cannot find north) restarts so that its coarse stage takes the
-    heading from the GNSS track. ``t``: the stamp of the latest GNSS message.
+    heading from the GNSS track. ``t``: the stamp of the latest GNSS message;
+    ``arm_speed`` as :func:`gnss_motion`'s.
     """
     if aided and heading_known:
         return None
-    moving, speed = gnss_motion(gnss, cfg, np.array([t - 3.0, t]))
+    moving, speed = gnss_motion(gnss, cfg, np.array([t - 3.0, t]), arm_speed)
     if not moving:
         return None
     if not aided:
@@ -92,9 +99,14 @@ class Motion:
         return self.gnss or (self.speed is not None and self.drive is not None)
 
 
-def judge(gnss, cfg, window):
-    """Return the :class:`Motion` of the coarse ``window`` (t, dtheta, dv, dt)."""
-    moving, speed = gnss_motion(gnss, cfg, window[0])
+def judge(gnss, cfg, window, install=None):
+    """Return the :class:`Motion` of the coarse ``window`` (t, dtheta, dv, dt).
+
+    ``install``: the :class:`~.installation.Installation`, whose lever arm's speed over
+    the window is taken off the GNSS speed (:func:`gnss_motion`).
+    """
+    arm = 0.0 if install is None else install.speed_bound(window[1] / window[3][:, None])
+    moving, speed = gnss_motion(gnss, cfg, window[0], arm)
     return Motion(moving, speed, None if moving else imu_translation(window))
 
 

@@ -158,6 +158,7 @@ class IntegratedNavigation(GnssAidedEngine):
 
     i_phi, i_v = lc.I_PHI, lc.I_V
     navigates = True
+    MEAS_ENU = np.arange(6)             # position then velocity, each E, N, U
 
     def __init__(self, C_b_n, v_n, lat, lon, h, P0, Qc, R, method='mvbakf', tau_g=300.0,
                  tau_a=3600.0, rho=0.95, n_iter=5, tau=6.0, moment='mean', use_velocity=True,

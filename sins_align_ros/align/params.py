@@ -3,6 +3,7 @@
 No ROS here: :class:`Param` is plain data; ``ros/params.py`` turns it into
 rcl descriptors, the replay tool reads YAML and ``--set`` overrides with it.
 """
+import math
 from dataclasses import dataclass
 
 import yaml
@@ -31,7 +32,8 @@ PREPROCESS_WAVELETS = ('sym8', 'sym4', 'db4', 'db8', 'coif2')
 class Param:
     """One parameter: name, default (its type is the parameter's type), doc and limits.
 
-    ``choices`` restricts a string; ``lo``/``hi`` a number (inclusive);
+    ``choices`` restricts a string; ``lo``/``hi`` a number, or each element of a
+    double array (a tuple default: its length is the array's; inclusive);
     ``read_only`` parameters can only be set at start-up.
     """
 
@@ -43,8 +45,41 @@ class Param:
     choices: tuple = None
     read_only: bool = False
 
+    @property
+    def is_array(self):
+        """Tell whether the parameter is a double array (its default is a tuple)."""
+        return isinstance(self.default, tuple)
+
+    def normalise(self, value):
+        """Return ``value`` in the parameter's own type (an array as a tuple of floats).
+
+        Accepts what YAML, rclpy (``array.array``) and Python give; an int for a
+        double becomes a float. Anything else is returned unchanged for :meth:`check`.
+        """
+        if self.is_array and not isinstance(value, (str, bytes, dict)):
+            try:
+                items = list(value)
+            except TypeError:
+                return value
+            if all(type(v) in (int, float) for v in items):
+                return tuple(float(v) for v in items)
+            return value
+        if isinstance(self.default, float) and type(value) is int:
+            return float(value)
+        return value
+
     def check(self, value):
         """Return an error message for ``value`` or None if it is acceptable."""
+        if self.is_array:
+            value = self.normalise(value)
+            n = len(self.default)
+            if type(value) is not tuple or len(value) != n:
+                return f'{self.name}={value!r} is not an array of {n} numbers'
+            if not all(math.isfinite(v) for v in value):
+                return f'{self.name}={value!r} has a non-finite element'
+            if self.lo is not None and not all(self.lo <= v <= self.hi for v in value):
+                return f'{self.name}={value!r} has an element outside [{self.lo}, {self.hi}]'
+            return None
         if type(value) is not type(self.default) and not (
                 isinstance(self.default, float) and type(value) is int):
             return (f'{self.name}={value!r} has type {type(value).__name__}, '
@@ -74,6 +109,14 @@ ALIGNMENT_PARAMS = (
     Param('initial_longitude_deg', 0.0, 'longitude used without a GNSS fix, deg',
           -180.0, 180.0),
     Param('initial_height_m', 0.0, 'height used without a GNSS fix, m', -1000.0, 50000.0),
+    Param('gnss_lever_arm_m', (0.0, 0.0, 0.0), 'GNSS antenna position relative to the IMU '
+          'in the vehicle frame (FLU: forward, left, up), [x, y, z] m: every GNSS position and '
+          'velocity is moved to the IMU (docs/design.md, lever arm)', -500.0, 500.0),
+    Param('imu_mounting_rpy_deg', (0.0, 0.0, 0.0), 'rotation of the vehicle frame to the '
+          'IMU frame (the base_link -> imu_link transform), [roll, pitch, yaw] deg, REP-103 '
+          '(static_transform_publisher takes them as yaw, pitch, roll): the IMU data are '
+          'turned into the vehicle frame at input and every output is the vehicle\'s '
+          'attitude', -360.0, 360.0),
     Param('use_gnss_position', True, 'take latitude/height from a valid gnss/fix when one '
           'arrives before fine alignment starts'),
     Param('gyro_bias_dph', 0.01, 'gyro constant bias, 1 sigma, deg/h (filter model)',
@@ -186,6 +229,10 @@ NODE_PARAMS = (
           '(wall clock; or a GNSS message comes), then go through the checks and the '
           'filters together; imu/data is still published for every sample. Bounds the '
           'added latency; 0: each message at once, s', 0.0, 0.1, read_only=True),
+    Param('base_frame_id', 'base_link', 'frame_id of imu/data and ~/euler, and child frame '
+          'of ~/odom, when imu_mounting_rpy_deg is set (their rates are then the vehicle\'s); '
+          'without a mounting rotation the IMU frame is the vehicle frame and the input '
+          'frame_id is kept'),
     Param('odom_frame_id', 'odom', 'frame_id of ~/odom: ENU axes, origin where fine '
           'alignment started'),
 )
@@ -212,7 +259,7 @@ def validate(values):
         err = p.check(v)
         if err:
             raise ValueError(err)
-        out[k] = float(v) if isinstance(p.default, float) else v
+        out[k] = p.normalise(v)
     return out
 
 
@@ -224,10 +271,11 @@ def split_node_params(values):
     """
     node = {}
     for k in [k for k in values if k in _NODE_BY_NAME]:
-        err = _NODE_BY_NAME[k].check(values[k])
+        p = _NODE_BY_NAME[k]
+        err = p.check(values[k])
         if err:
             raise ValueError(err)
-        node[k] = values[k]
+        node[k] = p.normalise(values[k])
     return validate({k: v for k, v in values.items() if k not in node}), node
 
 
@@ -244,6 +292,12 @@ def parse_value(name, text):
         raise ValueError(f'{name}: cannot read {text!r} as a value') from None
     if isinstance(p.default, bool) and type(value) is int and value in (0, 1):
         return bool(value)
+    if p.is_array:
+        value = p.normalise(value)
+        if p.check(value):
+            raise ValueError(f'{name} expects an array of {len(p.default)} numbers such as '
+                             f'[0.0, 0.0, 0.0], got {text!r}')
+        return value
     if isinstance(p.default, float) and type(value) is int:
         return float(value)
     if type(value) is not type(p.default):
@@ -279,5 +333,6 @@ def markdown_table(params):
             rng = f'[{p.lo}, {p.hi}]'
         else:
             rng = ''
-        rows.append(f'| `{p.name}` | `{p.default}` | {rng} | {p.description} |')
+        default = list(p.default) if p.is_array else p.default
+        rows.append(f'| `{p.name}` | `{default}` | {rng} | {p.description} |')
     return '\n'.join(rows)

@@ -27,6 +27,7 @@ from . import params as prm
 from .factory import is_aided, make_engine, noise_spec
 from .fine_stage import ALIGNED, FINE, Clock, FineStage
 from .gnss_buffer import GnssBuffer
+from .installation import Installation
 from .output import Output, Rows, assemble, unknown
 from .preprocess import Preprocessor
 from .report import ConditionReport, pipeline_status
@@ -53,6 +54,8 @@ class AlignmentPipeline:
         self.cfg = dict(cfg)
         #: the sensor model in SI units (NoiseSpec) the filters use
         self.noise = noise_spec(cfg)
+        #: the IMU mounting rotation and the GNSS lever arm (:mod:`.installation`)
+        self.install = Installation.from_params(cfg)
         self.gnss = GnssBuffer()
         self.n_restarts = 0
         self.reset()
@@ -162,7 +165,8 @@ class AlignmentPipeline:
     def _watch_motion(self, t):
         """Restart when GNSS shows motion a running filter cannot take (:func:`motion.watch`)."""
         if self.fine is not None:
-            reason = motion.watch(self.gnss, self.cfg, t, self.aided, self.fine.heading_known)
+            reason = motion.watch(self.gnss, self.cfg, t, self.aided, self.fine.heading_known,
+                                  self.install.speed_since(t - 3.0))
             if reason is not None:
                 self._diverged(reason)
 
@@ -183,13 +187,19 @@ class AlignmentPipeline:
 
     # -- processing -----------------------------------------------------------------------
     def feed(self, t, dtheta, dv):
-        """Process samples through the optional pre-processing stage (``preprocess``).
+        """Process IMU-frame samples: turned into the vehicle frame, then pre-processed.
 
-        Without it this is :meth:`process`. With it the samples are resampled and
+        The increments are turned by ``imu_mounting_rpy_deg`` (:mod:`.installation`) and
+        go through the optional pre-processing stage (``preprocess``).
+
+        Without pre-processing this is :meth:`process`. With it the samples are resampled and
         denoised (:mod:`.preprocess`) and come out later, each with its own stamp:
         the returned :class:`Output` has a row per sample finished by this call
         (none while the stage fills, several at once after).
         """
+        dtheta = self.install.to_vehicle(np.asarray(dtheta, dtype=float))
+        dv = self.install.to_vehicle(np.asarray(dv, dtype=float))
+        self.install.recent_speed(t, dtheta, self.clock.t_last)
         if self.pre is None:
             return self.process(t, dtheta, dv)
         t, dtheta, dv = self.pre.push(t, dtheta, dv)
@@ -272,7 +282,7 @@ class AlignmentPipeline:
     def _finish_coarse(self):
         window = self.window.arrays(self.clock.t_first)
         self.window = coarse_stage.CoarseWindow(self.cfg['coarse_duration'])
-        m = motion.judge(self.gnss, self.cfg, window)
+        m = motion.judge(self.gnss, self.cfg, window, self.install)
         self.cfg['fine_filter'] = motion.choose_filter(self.cfg, m.moving)
         self.aided = is_aided(self.cfg['fine_filter'])
         reason = motion.cannot_start(self.cfg['fine_filter'], self.aided, m)
@@ -286,7 +296,8 @@ class AlignmentPipeline:
             self._self_check(window, at_rest=not m.moving and (m.speed is not None
                                                                or not self.aided))
         res, info, reason = coarse_stage.run(window, self.cfg, self.noise, self.position,
-                                             self.gnss, self.clock.t_last, self.aided)
+                                             self.gnss, self.clock.t_last, self.aided,
+                                             self.install)
         self.coarse_info = info
         if reason is not None:
             self._diverged(reason)
@@ -317,7 +328,8 @@ class AlignmentPipeline:
                                               heading_known)
         self.warnings.extend(warnings)
         self.fine = FineStage(engine, floor, self.clock, self.cfg, heading_known,
-                              unobservable_variance(start.position[0], self.noise)[0])
+                              unobservable_variance(start.position[0], self.noise)[0],
+                              self.install, self.noise)
 
     def _fill_last(self, out):
         """Put the coarse result into the last row of a coarse block."""

@@ -75,6 +75,7 @@ class RobustAlignment(GnssAidedEngine):
         The GNSS innovation gate (None: off), :class:`~.gnss_gate.GnssGate`.
     """
 
+    MEAS_ENU = np.array([3, 4, 5])      # the velocity E, N, U
     i_phi, i_v, i_eps, i_nab = lm.I_PHI, lm.I_V, lm.I_EPS, lm.I_NAB
 
     def __init__(self, C_b_n, v_n, lat, lon, h, P0, Qc, R, robust=True, rho=0.98,

@@ -64,7 +64,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..nav import earth
-from ..nav.coarse import detect_motion, velocity_integral_b0
+from ..nav.coarse import arm_velocity_b0, detect_motion, velocity_integral_b0
 from ..units import DPH, DPSH, UG
 from .factory import gnss_sigma, uses_reported_covariance
 
@@ -263,11 +263,11 @@ def gnss_check(out, gnss, t0, t1, cfg, window=None):
         sigma = robust_difference_sigma(V[:, :2])
         if window is not None:
             sigma = min(sigma, motion_free_velocity_sigma(np.array([v[0] for v in vels]), V,
-                                                          window))
+                                                          window, cfg['gnss_lever_arm_m']))
         _gnss_sigma(out, cfg, 'gnss_vel_sigma_mps', sigma, vel_reported, 'm/s')
 
 
-def motion_free_velocity_sigma(t_v, V, window):
+def motion_free_velocity_sigma(t_v, V, window, arm_b=None):
     """Horizontal GNSS velocity noise 1-sigma with the base's motion, as the IMU sees it, removed.
 
     The third differences of the fixes' velocities hold the receiver's noise and the
@@ -286,14 +286,18 @@ def motion_free_velocity_sigma(t_v, V, window):
     instead read a car speeding up as no noise at all), taken again without those
     beyond 3 sigma and their neighbours (the three an outlier spoils).
     ``t_v`` (N,) stamps and ``V`` (N, 3) ENU velocities of the fixes; ``window`` the
-    coarse window ``(t, dtheta, dv, dt)``. Root mean over the east and north axes; NaN
-    when fewer than 10 fixes lie in the window.
+    coarse window ``(t, dtheta, dv, dt)``; ``arm_b`` (3,) the GNSS lever arm (m, body
+    axes): the antenna's velocity about the IMU, known from the gyros, is added to ``u``
+    (as in :func:`~sins_align_ros.nav.coarse.inertial_frame`). Root mean over the east and
+    north axes; NaN when fewer than 10 fixes lie in the window.
     """
-    tt, dth, dvv, _ = window
+    tt, dth, dvv, dts = window
     inside = (t_v >= tt[0]) & (t_v <= tt[-1])
     if np.count_nonzero(inside) < 10:
         return float('nan')
-    _, u_b0 = velocity_integral_b0(dth, dvv)
+    C_bb0, u_b0 = velocity_integral_b0(dth, dvv)
+    if arm_b is not None and np.any(arm_b):
+        u_b0 = u_b0 + arm_velocity_b0(C_bb0, dth, dts, np.asarray(arm_b, dtype=float))
     t = t_v[inside]
     U = np.column_stack([np.interp(t, tt, u_b0[:, i]) for i in range(3)])
     U_h = (U @ _levelling(U[-1] - U[0]).T)[:, :2]

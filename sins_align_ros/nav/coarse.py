@@ -78,7 +78,19 @@ def velocity_integral_b0(dtheta, dv):
     return C_bb0, np.cumsum(np.einsum('kij,kj->ki', C_prev, dv_c), axis=0)
 
 
-def inertial_frame(dtheta, dv, dt, lat, h=0.0, dv_n=None, n_epochs=50):
+def arm_velocity_b0(C_bb0, dtheta, dt, arm_b):
+    """Velocity (N, 3) in b0 of a point ``arm_b`` (3,) m from the IMU, less its first value.
+
+    ``C_b^b0 (w x arm)`` with the rate ``w = dtheta / dt`` of each sample: what a GNSS
+    antenna on a lever arm adds to the IMU's velocity, known from the gyros alone.
+    ``C_bb0`` (N, 3, 3) as :func:`velocity_integral_b0` gives; ``dt`` (N,).
+    """
+    L_b0 = np.einsum('kij,kj->ki', C_bb0, np.cross(dtheta / dt[:, None], arm_b))
+    return L_b0 - L_b0[0]
+
+
+def inertial_frame(dtheta, dv, dt, lat, h=0.0, dv_n=None, n_epochs=50, arm_b=None,
+                   epochs=None):
     """Inertial-frame (i0) coarse alignment, tolerant of sway and disturbance.
 
     Parameters
@@ -93,6 +105,15 @@ def inertial_frame(dtheta, dv, dt, lat, h=0.0, dv_n=None, n_epochs=50):
         velocity aiding); None for a base at rest on average.
     n_epochs : int
         Number of epochs used in the Wahba fit.
+    arm_b : ndarray (3,) or None
+        ``dv_n`` is the velocity of a point this far from the IMU (body axes, m): a GNSS
+        antenna on a lever arm. Its velocity about the IMU, ``C_b^b0 (w x arm)`` in b0, is
+        known from the gyros alone, so it is added to the specific-force side, where the
+        unknown attitude does not touch it: ``V_b0 + dL_b0 = C_i0^b0 (G_i0 + dV_i0)``.
+    epochs : ndarray of int or None
+        Samples to fit at (default ``n_epochs`` from the first tenth of the window on);
+        the fit then uses the differences from the first of them, so that ``dv_n`` need
+        only be right at these samples (a velocity measured there, not interpolated).
 
     Returns
     -------
@@ -103,6 +124,8 @@ def inertial_frame(dtheta, dv, dt, lat, h=0.0, dv_n=None, n_epochs=50):
     dt = np.broadcast_to(np.asarray(dt, dtype=float), (n,))
     t = np.cumsum(dt)
     C_bb0, V_b0 = velocity_integral_b0(dtheta, dv)
+    if dv_n is not None and arm_b is not None and np.any(arm_b):
+        V_b0 = V_b0 + arm_velocity_b0(C_bb0, dtheta, dt, arm_b)
     # gravity integral in i0 (ENU at t0, fixed in inertial space): the up vector turns
     # about the Earth axis u at the Earth rate: C_n(t)^i0 = exp(W t [u x])
     g = earth.gravity(lat, h)
@@ -121,8 +144,12 @@ def inertial_frame(dtheta, dv, dt, lat, h=0.0, dv_n=None, n_epochs=50):
         dvn = np.diff(np.vstack([np.zeros(3), dv_n]), axis=0)
         Rz = _rotations(u, a)
         V_i0 = V_i0 + np.cumsum(np.einsum('kij,kj->ki', Rz, dvn), axis=0)
-    idx = np.unique(np.linspace(n // 10, n - 1, n_epochs).astype(int))
-    B = np.einsum('ki,kj->ij', V_b0[idx], V_i0[idx])       # sum of b0 (x) i0 pairs
+    if epochs is None:
+        idx = np.unique(np.linspace(n // 10, n - 1, n_epochs).astype(int))
+        B = np.einsum('ki,kj->ij', V_b0[idx], V_i0[idx])   # sum of b0 (x) i0 pairs
+    else:
+        idx = np.asarray(epochs, dtype=int)
+        B = np.einsum('ki,kj->ij', V_b0[idx[1:]] - V_b0[idx[0]], V_i0[idx[1:]] - V_i0[idx[0]])
     U, _, Vt = np.linalg.svd(B)
     D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
     C_i0_b0 = U @ D @ Vt                                    # V_b0 = C_i0_b0 @ V_i0

@@ -10,7 +10,9 @@ tool drives too, with the input checks and restart rules — and the node publis
 * ``imu/data`` (sensor_msgs/Imu): the input rates plus the orientation body ->
   ENU with ``orientation_covariance`` = the filter's misalignment covariance
   about the ENU axes (rad^2); until coarse alignment is done the orientation is
-  marked unknown (``orientation_covariance[0] = -1``, REP-145);
+  marked unknown (``orientation_covariance[0] = -1``, REP-145). With
+  ``imu_mounting_rpy_deg`` set, the body is the vehicle: rates, accelerations and their
+  covariances are turned into its frame and the frame_id is ``base_frame_id``;
 * ``~/euler`` (geometry_msgs/Vector3Stamped): REP-103 roll, pitch, yaw in rad;
 * ``/diagnostics`` (diagnostic_msgs/DiagnosticArray, status ``<node>: alignment``,
   :mod:`.diagnostics`);
@@ -18,7 +20,7 @@ tool drives too, with the input checks and restart rules — and the node publis
   ``mvbakf``, ``ukf``) and ``continue_navigation``: the GNSS/INS solution at every
   IMU sample from the start of fine alignment on, pose in ``odom_frame_id`` (ENU,
   origin where fine alignment started: ``odom_origin_*`` in the diagnostics), twist
-  in the IMU's frame (:mod:`sins_align_ros.align.odometry`).
+  in the body's frame, the same as ``imu/data``'s (:mod:`sins_align_ros.align.odometry`).
 
 Bad input is skipped or bridged, counted by reason in the diagnostics' values,
 logged at most once per :data:`~.diagnostics.LOG_PERIOD_S` per reason, and raises
@@ -49,7 +51,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, NavSatFix
 from std_srvs.srv import Trigger
 
-from .conversions import stamp_to_sec
+from .conversions import set_vector3, stamp_to_sec
 from .diagnostics import FaultLog, alignment_status
 from .messages import imu_message, odometry_message
 from .params import declare
@@ -62,6 +64,7 @@ from ..nav import kernels
 NODE_PARAMS = prm.NODE_PARAMS
 PARAMS = prm.ALIGNMENT_PARAMS + NODE_PARAMS
 _ALIGN_NAMES = {p.name for p in prm.ALIGNMENT_PARAMS}
+_BY_NAME = {p.name: p for p in PARAMS}
 #: how the input sources are named in log lines and diagnostics
 _SOURCES = {'imu': 'imu/data_raw', 'gnss': 'gnss'}
 
@@ -131,7 +134,8 @@ class AlignmentNode(Node):
     def _apply_params(self, changes):
         names = [c.name for c in changes if c.name in _ALIGN_NAMES]
         for c in changes:
-            self.p[c.name] = c.value
+            self.p[c.name] = _BY_NAME[c.name].normalise(c.value) if c.name in _BY_NAME \
+                else c.value
             if c.name in _ALIGN_NAMES:
                 self._align_values[c.name] = c.value
         if names:
@@ -220,6 +224,9 @@ class AlignmentNode(Node):
             out = self.session.imu_block(t, wf[:, :3], wf[:, 3:])
         self._period_imu[1] += n - (conv.rejected - skipped)
         self.counts['imu'] += conv.counts['accepted'] - accepted
+        C_s_v = self.pipeline.install.C_s_v
+        if C_s_v is not None:
+            _to_vehicle_frame([m for _, m in batch], wf, C_s_v, self.p['base_frame_id'])
         self._recent.extend(batch)
         odo_state = self._odometry_state() if out.nav is not None and len(out.t) else None
         for k, t_k in enumerate(out.t):            # each finished sample, its own header
@@ -285,6 +292,24 @@ class AlignmentNode(Node):
         arr.header.stamp = self.get_clock().now().to_msg()
         arr.status = [st]
         self.pub_diag.publish(arr)
+
+
+def _to_vehicle_frame(msgs, wf, C_s_v, frame_id):
+    """Turn received Imu ``msgs`` (rates and accelerations ``wf`` (N, 6)) into the vehicle frame.
+
+    ``C_s_v`` (3, 3) IMU -> vehicle rotation; the rate and acceleration covariances are
+    turned with them, and ``frame_id`` (``base_frame_id``) replaces the IMU's.
+    """
+    w = wf[:, :3] @ C_s_v.T
+    f = wf[:, 3:] @ C_s_v.T
+    for k, m in enumerate(msgs):
+        set_vector3(m.angular_velocity, w[k])
+        set_vector3(m.linear_acceleration, f[k])
+        for name in ('angular_velocity_covariance', 'linear_acceleration_covariance'):
+            P = np.asarray(getattr(m, name), dtype=float).reshape(3, 3)
+            if np.any(P):
+                setattr(m, name, (C_s_v @ P @ C_s_v.T).ravel())
+        m.header.frame_id = frame_id
 
 
 def main(args=None):

@@ -8,7 +8,9 @@ from ..align.params import Param, markdown_table  # noqa: F401  (re-exported for
 def descriptor(p):
     """Build the rcl ParameterDescriptor of a :class:`Param` (type, range, choices)."""
     d = ParameterDescriptor(name=p.name, description=p.description, read_only=p.read_only)
-    if isinstance(p.default, bool):
+    if p.is_array:
+        d.type = ParameterType.PARAMETER_DOUBLE_ARRAY
+    elif isinstance(p.default, bool):
         d.type = ParameterType.PARAMETER_BOOL
     elif isinstance(p.default, int):
         d.type = ParameterType.PARAMETER_INTEGER
@@ -36,10 +38,12 @@ def declare(node, params):
     by_name = {p.name: p for p in params}
     values = {}
     for p in params:
-        values[p.name] = node.declare_parameter(p.name, p.default, descriptor(p)).value
-        err = p.check(values[p.name])
+        default = list(p.default) if p.is_array else p.default
+        value = node.declare_parameter(p.name, default, descriptor(p)).value
+        err = p.check(value)
         if err:
             raise ValueError(err)
+        values[p.name] = p.normalise(value)
 
     def _on_set(changes):
         for c in changes:

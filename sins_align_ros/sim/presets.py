@@ -82,6 +82,13 @@ class Scenario:
     misalignment_deg : (3,)
         Initial attitude error the seed applies to the fine filter, ENU axes
         (east, north, up), deg.
+    gnss_lever_arm_m : (3,)
+        The GNSS antenna's position relative to the IMU, vehicle frame (FLU), m: the
+        receiver measures the antenna's position and velocity.
+    imu_mounting_rpy_deg : (3,)
+        Rotation vehicle frame -> IMU frame (REP-103 roll, pitch, yaw, deg): the IMU
+        outputs its samples in its own axes (the sensor errors are drawn in the
+        vehicle's, which changes nothing for errors alike on every axis).
     """
 
     name: str
@@ -93,6 +100,8 @@ class Scenario:
     imu_rate_hz: float = 100.0
     misalignment_deg: tuple = (0.0, 0.0, 0.0)
     extra: dict = field(default_factory=dict)
+    gnss_lever_arm_m: tuple = (0.0, 0.0, 0.0)
+    imu_mounting_rpy_deg: tuple = (0.0, 0.0, 0.0)
 
 
 def _seed002(mis):
@@ -235,6 +244,21 @@ def _ship_underway():
         misalignment_deg=(0.1, 0.1, 1.0))
 
 
+#: a mast-top GNSS antenna: 10 m aft of the IMU, 2 m to port, 18 m up (FLU)
+MAST_LEVER_ARM_M = (-10.0, 2.0, 18.0)
+#: robot_localization's test robot: its IMU turned +90 deg about x and -90 deg about z
+ROBOT_IMU_MOUNTING_RPY_DEG = (90.0, 0.0, -90.0)
+
+
+def _installed(factory, name, description, **fields):
+    """Scenario of ``factory`` renamed, with installation ``fields`` set."""
+    sc = factory()
+    sc.name, sc.description = name, f'{sc.description}; {description}'
+    for k, v in fields.items():
+        setattr(sc, k, v)
+    return sc
+
+
 _FACTORIES = {
     'static_navigation': lambda: _static('navigation'),
     'static_tactical': lambda: _static('tactical'),
@@ -251,6 +275,15 @@ _FACTORIES = {
     'seed004_low': lambda: _severe_sea('low'),
     'ship_sway': _ship_sway,
     'ship_underway': _ship_underway,
+    'ship_sway_mast': lambda: _installed(
+        _ship_sway, 'ship_sway_mast', 'GNSS antenna at the masthead (18 m up)',
+        gnss_lever_arm_m=MAST_LEVER_ARM_M),
+    'ship_underway_mast': lambda: _installed(
+        _ship_underway, 'ship_underway_mast', 'GNSS antenna at the masthead (18 m up)',
+        gnss_lever_arm_m=MAST_LEVER_ARM_M),
+    'seed003_car_rotated': lambda: _installed(
+        _car, 'seed003_car_rotated', 'IMU mounted turned as robot_localization\'s test robot '
+        '(+90 deg about x, -90 deg about z)', imu_mounting_rpy_deg=ROBOT_IMU_MOUNTING_RPY_DEG),
 }
 #: names accepted by :func:`scenario`
 SCENARIOS = tuple(_FACTORIES)
@@ -292,7 +325,8 @@ def alignment_params(sc, fine_filter, **overrides):
     Gauss-Markov part (``gyro_bias_instability_dph``, ``gyro_bias_tau_s``), the
     accelerometer's constant and Gauss-Markov bias combined into one 1-sigma bias
     (no filter models a varying accelerometer bias), the white noises, the GNSS noise
-    and the scenario's position as the initial one.
+    and the scenario's position as the initial one; the installation (lever arm,
+    mounting) when the scenario has one.
     ``sc.extra['alignment']`` adds scenario-specific settings; keyword overrides win.
     """
     s = sc.imu
@@ -305,6 +339,10 @@ def alignment_params(sc, fine_filter, **overrides):
            'gyro_bias_instability_dph': float(s.gyro_markov_dph),
            'gyro_bias_tau_s': float(s.gyro_markov_tau_s),
            'accel_bias_ug': accel_bias, 'accel_vrw_ug_rthz': float(s.accel_vrw_ug_rthz)}
+    if np.any(sc.gnss_lever_arm_m):
+        out['gnss_lever_arm_m'] = tuple(float(v) for v in sc.gnss_lever_arm_m)
+    if np.any(sc.imu_mounting_rpy_deg):
+        out['imu_mounting_rpy_deg'] = tuple(float(v) for v in sc.imu_mounting_rpy_deg)
     if sc.gnss is not None:
         out['gnss_pos_sigma_m'] = float(sc.gnss.pos_sigma_h)
         out['gnss_vel_sigma_mps'] = float(sc.gnss.vel_sigma)
