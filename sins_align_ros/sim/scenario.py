@@ -11,7 +11,7 @@ from .imu import ImuSimulator
 
 
 def antenna_truth(traj, t, pos, lever_arm_m):
-    """True position (N, 3) and ENU velocity (N, 3) of a GNSS antenna on a lever arm.
+    """Return the true position (N, 3) and ENU velocity (N, 3) of a GNSS antenna on an arm.
 
     ``pos`` (N, 3) the IMU's (lat, lon rad, h m) at times ``t`` (N,); ``lever_arm_m`` (3,)
     the antenna relative to the IMU in the vehicle frame (FLU). ``p + C l`` and
