@@ -36,7 +36,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..nav import earth
-from ..nav.coarse import body_attitude_increments
+from ..nav.coarse import arm_velocity_b0, body_attitude_increments
 from ..nav.frames import euler_to_dcm, skew
 from ..units import DEG
 
@@ -75,6 +75,16 @@ class Installation:
     def to_vehicle(self, x_s):
         """Turn vectors (N, 3) or (3,) from the IMU frame into the vehicle frame."""
         return x_s if self.C_s_v is None else x_s @ self.C_s_v.T
+
+    def take(self, t, dtheta, dv, t_prev):
+        """Return increments ``dtheta``, ``dv`` (N, 3) or (3,) in the vehicle frame.
+
+        Records their arm speed (:meth:`recent_speed`); ``t`` their stamps, ``t_prev`` the
+        stamp before the first (or None).
+        """
+        dtheta = self.to_vehicle(np.asarray(dtheta, dtype=float))
+        self.recent_speed(t, dtheta, t_prev)
+        return dtheta, self.to_vehicle(np.asarray(dv, dtype=float))
 
     # -- the GNSS antenna ----------------------------------------------------------------
     def arm_velocity_v(self, w_v):
@@ -119,8 +129,7 @@ class Installation:
         """
         C_bb0 = body_attitude_increments(dtheta)
         C_n_b0 = C_v_n_end @ C_bb0[-1].T
-        a_b0 = np.einsum('kij,kj->ki', C_bb0, self.arm_velocity_v(dtheta / dt[:, None]))
-        return a_b0 @ C_n_b0.T
+        return arm_velocity_b0(C_bb0, dtheta, dt, self.l_v, relative=False) @ C_n_b0.T
 
     def recent_speed(self, t, dtheta, t_prev):
         """Record the largest arm speed of samples ``t`` (N,), ``dtheta`` (N, 3) (vehicle).

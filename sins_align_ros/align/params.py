@@ -111,7 +111,7 @@ ALIGNMENT_PARAMS = (
     Param('initial_height_m', 0.0, 'height used without a GNSS fix, m', -1000.0, 50000.0),
     Param('gnss_lever_arm_m', (0.0, 0.0, 0.0), 'GNSS antenna position relative to the IMU '
           'in the vehicle frame (FLU: forward, left, up), [x, y, z] m: every GNSS position and '
-          'velocity is moved to the IMU (docs/design.md, lever arm)', -500.0, 500.0),
+          'velocity is moved to the IMU (docs/alignment_node.md, installation)', -500.0, 500.0),
     Param('imu_mounting_rpy_deg', (0.0, 0.0, 0.0), 'rotation of the vehicle frame to the '
           'IMU frame (the base_link -> imu_link transform), [roll, pitch, yaw] deg, REP-103 '
           '(static_transform_publisher takes them as yaw, pitch, roll): the IMU data are '

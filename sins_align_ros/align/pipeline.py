@@ -187,19 +187,14 @@ class AlignmentPipeline:
 
     # -- processing -----------------------------------------------------------------------
     def feed(self, t, dtheta, dv):
-        """Process IMU-frame samples: turned into the vehicle frame, then pre-processed.
+        """Process IMU-frame samples: into the vehicle frame (:mod:`.installation`), then on.
 
-        The increments are turned by ``imu_mounting_rpy_deg`` (:mod:`.installation`) and
-        go through the optional pre-processing stage (``preprocess``).
-
-        Without pre-processing this is :meth:`process`. With it the samples are resampled and
-        denoised (:mod:`.preprocess`) and come out later, each with its own stamp:
-        the returned :class:`Output` has a row per sample finished by this call
+        Without pre-processing (``preprocess``) this is :meth:`process`. With it the samples
+        are resampled and denoised (:mod:`.preprocess`) and come out later, each with its
+        own stamp: the returned :class:`Output` has a row per sample finished by this call
         (none while the stage fills, several at once after).
         """
-        dtheta = self.install.to_vehicle(np.asarray(dtheta, dtype=float))
-        dv = self.install.to_vehicle(np.asarray(dv, dtype=float))
-        self.install.recent_speed(t, dtheta, self.clock.t_last)
+        dtheta, dv = self.install.take(t, dtheta, dv, self.clock.t_last)
         if self.pre is None:
             return self.process(t, dtheta, dv)
         t, dtheta, dv = self.pre.push(t, dtheta, dv)

@@ -78,15 +78,16 @@ def velocity_integral_b0(dtheta, dv):
     return C_bb0, np.cumsum(np.einsum('kij,kj->ki', C_prev, dv_c), axis=0)
 
 
-def arm_velocity_b0(C_bb0, dtheta, dt, arm_b):
-    """Velocity (N, 3) in b0 of a point ``arm_b`` (3,) m from the IMU, less its first value.
+def arm_velocity_b0(C_bb0, dtheta, dt, arm_b, relative=True):
+    """Velocity (N, 3) in b0 of a point ``arm_b`` (3,) m from the IMU about the IMU.
 
     ``C_b^b0 (w x arm)`` with the rate ``w = dtheta / dt`` of each sample: what a GNSS
     antenna on a lever arm adds to the IMU's velocity, known from the gyros alone.
-    ``C_bb0`` (N, 3, 3) as :func:`velocity_integral_b0` gives; ``dt`` (N,).
+    ``C_bb0`` (N, 3, 3) as :func:`velocity_integral_b0` gives; ``dt`` (N,); ``relative``:
+    less its first value (the change since the window's start).
     """
     L_b0 = np.einsum('kij,kj->ki', C_bb0, np.cross(dtheta / dt[:, None], arm_b))
-    return L_b0 - L_b0[0]
+    return L_b0 - L_b0[0] if relative else L_b0
 
 
 def inertial_frame(dtheta, dv, dt, lat, h=0.0, dv_n=None, n_epochs=50, arm_b=None,
