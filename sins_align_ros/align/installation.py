@@ -12,9 +12,9 @@ Lever arm ``l_v`` (3,) m, antenna relative to the IMU. With ``C_v_n`` the attitu
     p_ant = p_imu + C_v_n l_v                      (position, ENU metres)
     v_ant = v_imu + C_v_n (w_nv_v x l_v)           (velocity, ENU)
 
-(Groves, *Principles of GNSS, Inertial, and Multisensor Integrated Navigation*, 2nd ed.,
-eq. 14.123-14.124 in their ENU form; ``w_nv_v`` is taken as the gyro rate: the Earth and
-transport rates add below 1e-4 rad/s, 2 mm/s on a 20 m arm.)
+(the usual lever-arm relations of GNSS/INS integration, not from the seeds, which put the
+antenna at the IMU; ``w_nv_v`` is taken as the gyro rate: the Earth and transport rates
+add below 1e-4 rad/s, 2 mm/s on a 20 m arm.)
 
 Where we differ from a filter that models the arm in its measurement matrix: the
 attitude's uncertainty enters as measurement noise, not as information. The correction
