@@ -27,7 +27,8 @@ from ..filters.cubature import batched
 from ..filters.kf import nis
 from ..nav.mechanization import MechanizationOptions, Strapdown
 from ..units import DPH, UG
-from .gnss_gate import FilterDiverged
+from .gnss_gate import FilterDiverged, GnssGate
+from .heading import LINEAR_MAX, take_heading, yaw_update
 
 #: the longest interval the error model is propagated without a measurement, s
 MAX_PREDICT = 2.0
@@ -294,6 +295,8 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies):
     restages = False
     #: the model estimates the accelerometer bias (else bias / g is added to the tilt)
     has_accel_bias = True
+    #: the external heading's innovation gate, made at its first epoch
+    heading_gate = None
     #: the ENU axis of each row of the full measurement vector: 0-2 position E, N, U,
     #: 3-5 velocity E, N, U (where a lever arm's variance ``GnssFix.arm_var`` goes)
     MEAS_ENU = np.array([0, 1, 3, 4])
@@ -486,6 +489,51 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies):
         R[np.diag_indices(len(R))] = np.maximum(np.diag(R), 1e-3 * (d - arm).clip(0) + 1e-12)
         self.kf.R = R
 
+    # -- external heading -------------------------------------------------------------
+    def update_heading(self, fix, t_now, w_up=0.0):
+        """Filter epoch for an external heading ``fix`` (:class:`~.heading.HeadingFix`).
+
+        Predicts over the interval so far, then updates the misalignment with the yaw
+        (:func:`~.heading.yaw_update`, carried from the fix's stamp to ``t_now`` with the up
+        rate ``w_up``, rad/s) and feeds the estimate back as a GNSS epoch without a
+        position does; above :data:`~.heading.LINEAR_MAX` the heading is taken directly.
+        Outliers are gated with the GNSS gate's probability (a gate of its own). Returns
+        ``'used'``, ``'taken'`` or ``'rejected'``; raises :class:`FilterDiverged`.
+        """
+        if self.sums.T > 1e-6:
+            self.predict()
+        kf = self.kf
+        if self.heading_gate is None:
+            self.heading_gate = GnssGate(self.gate.probability, self.gate.max_rejects, (1,),
+                                         name='heading')
+        yaw = fix.yaw + w_up * (t_now - fix.t)
+        k_up = np.arange(len(kf.x))[self.i_phi][2]
+        P = kf.P
+        if P[k_up, k_up] > LINEAR_MAX ** 2:
+            self.mech.C_b_n, kf.P = take_heading(self.mech.C_b_n, P, k_up, yaw, fix.var)
+            x = kf.x.copy()
+            x[k_up] = 0.0
+            kf.x = x
+            self.heading_prior_var = None
+            self._heading_taken()
+            return 'taken'
+        max_nis = self.heading_gate.threshold(1, kf)
+        x, P, y, S, ok = yaw_update(kf.x, kf.P, self.i_phi, self.mech.C_b_n, yaw, fix.var,
+                                    max_nis)
+        if not ok:
+            self.heading_gate.rejected(fix.t, y * y / S, max_nis, np.array([k_up]),
+                                       np.array([y]))
+            return 'rejected'
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
+            raise FilterDiverged(f'filter diverged at t={fix.t:.3f} s (heading update)')
+        kf.x, kf.P = x, P
+        self.heading_gate.accepted()
+        self._feedback(None)
+        return 'used'
+
+    def _heading_taken(self):
+        """Act on a heading taken directly (the navigation filters' heading is found again)."""
+
     def feed(self, imu, gnss, t0):
         """Run samples 1..N-1 of ``imu`` (``t``, ``dtheta``, ``dv``) from stamp ``t0 = imu.t[0]``.
 
@@ -552,6 +600,8 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies):
              'R_scale': [float(v) for v in self.R_scale],
              'gyro_drift_dph': [float(v) for v in kf.x[self.i_eps] / DPH]}
         s.update(self.gate.status())
+        if self.heading_gate is not None:
+            s.update(self.heading_gate.status())
         if getattr(kf, 'lam', None) is not None:
             s['fading_factors'] = [float(v) for v in kf.lam]
             s['fading_epochs'] = int(kf.n_faded)

@@ -11,6 +11,7 @@ import math
 import numpy as np
 
 from . import params as prm
+from .gnss_gate import GnssGate
 from .moving import MovingBaseAlignment, model_noise as moving_model_noise
 from .navigation import IntegratedNavigation, gyro_tau, model_noise as nav_model_noise
 from .robust import RobustAlignment, model_noise as robust_model_noise
@@ -82,6 +83,7 @@ def make_engine(cfg, noise, start, has_velocity, heading_known=True):
         eng = StationaryEngine(StationaryModel(ff), noise, start.C_b_n, start.sigma,
                                start.position, zero_velocity_sigmas(cfg),
                                1.0 / cfg['fine_update_hz'])
+        eng.heading_gate = _heading_gate(cfg)
         return eng, eng.floor, []
     C, v_n, sigma, s_v = start.C_b_n, start.v_n, start.sigma, start.sigma_v
     lat, lon, h = start.position
@@ -117,11 +119,18 @@ def make_engine(cfg, noise, start, has_velocity, heading_known=True):
             adaptive=asckf and cfg['asckf_adaptive'], adapt_q=cfg['asckf_adapt_q'],
             b=cfg['asckf_forgetting'], use_reported_cov=cfg['use_reported_gnss_covariance'],
             **gate)
+    eng.heading_gate = _heading_gate(cfg)
     if not heading_known:
         eng.hold_level_accel_bias()
     # a model without accelerometer bias leaves a tilt of bias / g, added at the output
     tilt = 0.0 if eng.has_accel_bias else (noise.accel_bias / earth.gravity(lat, h)) ** 2
     return eng, np.array([tilt, tilt, 0.0]), warnings
+
+
+def _heading_gate(cfg):
+    """Return the external heading's innovation gate (the GNSS gate's probability, patience)."""
+    p = cfg['gnss_gate_probability']
+    return GnssGate(None if p >= 1.0 else p, cfg['gnss_gate_max_rejects'], (1,), name='heading')
 
 
 def _navigation(cfg, noise, C, v_n, lat, lon, h, sigma, s_v, gate):

@@ -61,8 +61,10 @@ class FineStage:
     """
 
     def __init__(self, engine, floor, clock, cfg, heading_known=True, tilt_bound=0.0,
-                 install=None, noise=None):
+                 install=None, noise=None, headings=None):
         self.engine = engine
+        #: the external heading's queue (:class:`~.heading.HeadingBuffer`), or None
+        self.headings = headings
         self.install = install
         self.noise = noise
         self.heading_known = bool(heading_known)
@@ -179,10 +181,17 @@ class FineStage:
         """
         if self.engine.restages:
             c = self.clock
-            j, C, epoch = self.engine.run_block(t, dtheta, dv, i, c.t_last)
+            hd = self._heading_due_index(t, i)
+            end = len(t) if hd is None else hd + 1
+            t_prev = c.t_last
+            j, C, epoch = self.engine.run_block(t[:end], dtheta[:end], dv[:end], i, c.t_last)
             c.t_last = t[j - 1]
             if epoch:
                 self._epoch_done(c.t_last)
+            if j == end and hd is not None:
+                dt = t[hd] - (t[hd - 1] if hd > i else t_prev)
+                self._apply_heading(t[hd], dtheta[hd], dt)
+                C[-1] = self.mech.C_b_n
             return [Rows(t[i:j], C, self.attitude_cov(), self.phase)], j, None
         return self._run_aided(t[i:], dtheta[i:], dv[i:], gnss, i)
 
@@ -207,7 +216,9 @@ class FineStage:
 
         k = 0
         while k < n:
-            due_at = gnss.next_due_index(t, k)
+            due = [d for d in (gnss.next_due_index(t, k), self._heading_due_index(t, k))
+                   if d is not None]
+            due_at = min(due) if due else None
             end = n if due_at is None else due_at + 1
             dt = np.diff(np.r_[c.t_last, t[k:end]])
             blk = eng.step_block(dtheta[k:end], dv[k:end], dt)
@@ -232,7 +243,7 @@ class FineStage:
                 if e > start:
                     cut(e, self.attitude_cov(), self.phase)
                     start = e
-                reason = self._apply_gnss(t[e], gnss, dtheta[e], dt[-1])
+                reason = self._apply_epochs(t[e], gnss, dtheta[e], dt[-1])
                 Cs[e] = m.C_b_n
                 if reason is not None:         # diverged: the stage ends at this row
                     if nav is not None:
@@ -255,6 +266,9 @@ class FineStage:
             c.t_last = t
             if epoch:
                 self._epoch_done(t)
+            if self.headings is not None and self.headings.due(t):
+                self._apply_heading(t, dtheta, dt)
+                C = eng.mech.C_b_n
         else:
             n_pred = eng.n_predict_only
             try:
@@ -265,8 +279,9 @@ class FineStage:
             c.t_last = t
             if reason is None and eng.n_predict_only != n_pred:    # the sigma grew
                 self._att_cov = None
-            if reason is None and gnss.due(t):
-                reason = self._apply_gnss(t, gnss, dtheta, dt)
+            if reason is None and (gnss.due(t) or (self.headings is not None
+                                                   and self.headings.due(t))):
+                reason = self._apply_epochs(t, gnss, dtheta, dt)
                 C = eng.mech.C_b_n
             if reason is not None:                   # diverged: the stage ends at this row
                 nav = np.full((1, 6), np.nan) if self.navigating else None
@@ -276,6 +291,39 @@ class FineStage:
             m = eng.mech
             nav = np.array([[m.lat, m.lon, m.h, m.v_n[0], m.v_n[1], m.v_n[2]]])
         return one_row(t, C, self.attitude_cov(), self.phase, nav), None
+
+    def _heading_due_index(self, t, k):
+        """Index of the sample of ``t`` (from ``k``) an external heading is due at, or None."""
+        return None if self.headings is None else self.headings.next_due_index(t, k)
+
+    def _apply_epochs(self, t_now, gnss, dtheta, dt):
+        """Apply the GNSS epochs, then the external headings, due at ``t_now``; the reason."""
+        reason = self._apply_gnss(t_now, gnss, dtheta, dt)
+        if reason is None and self.headings is not None:
+            reason = self._apply_heading(t_now, dtheta, dt)
+        return reason
+
+    def _apply_heading(self, t_now, dtheta, dt):
+        """Give the engine the queued external headings up to ``t_now``; the reason if it diverged.
+
+        ``dtheta`` (3,) rad over ``dt`` s: the sample's rate carries the yaw from the
+        epoch's stamp to ``t_now``. A heading measured makes the heading known, whatever
+        the gyros can see (:attr:`heading_known`). Not checked by the consistency monitor
+        (its gate rejects outliers): the monitor's remedies are for the GNSS model.
+        """
+        while True:
+            fix = self.headings.pop_due(t_now, self.t0)
+            if fix is None:
+                return None
+            w_up = float(self.engine.mech.C_b_n[2] @ np.asarray(dtheta)) / max(float(dt), 1e-6)
+            try:
+                result = self.engine.update_heading(fix, t_now, w_up)
+            except FilterDiverged as exc:
+                return str(exc)
+            self.headings.counts[result] += 1
+            if result != 'rejected':
+                self.heading_known = True
+            self._epoch_done(t_now)
 
     def _apply_gnss(self, t_now, gnss, dtheta, dt):
         """Give the engine every queued epoch up to ``t_now``; the reason if it diverged.

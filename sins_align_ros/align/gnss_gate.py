@@ -24,10 +24,12 @@ class FilterDiverged(RuntimeError):
 class GnssGate:
     """Gate state and counts; ``probability`` None switches the gate off.
 
-    ``sizes``: the measurement sizes whose thresholds the status reports.
+    ``sizes``: the measurement sizes whose thresholds the status reports; ``name`` the
+    source in messages and status keys (the external heading has a gate of its own).
     """
 
-    def __init__(self, probability=None, max_rejects=10, sizes=()):
+    def __init__(self, probability=None, max_rejects=10, sizes=(), name='gnss'):
+        self.name = name
         self.probability = probability
         self.max_rejects = int(max_rejects)
         self.sizes = tuple(sizes)
@@ -54,9 +56,9 @@ class GnssGate:
         self._forced_run += 1
         if self._forced_run >= MAX_FORCED:
             raise FilterDiverged(
-                f'GNSS rejected by the innovation gate {self.max_rejects} epochs in a row, '
-                f'{MAX_FORCED} times without recovering: the inertial solution and GNSS '
-                'disagree')
+                f'{self._label} rejected by the innovation gate {self.max_rejects} epochs in '
+                f'a row, {MAX_FORCED} times without recovering: the inertial solution and '
+                f'{self._label} disagree')
         r_rej, y_rej = self._y_rejected
         P = kf.P
         P[r_rej, r_rej] += y_rej ** 2
@@ -84,7 +86,12 @@ class GnssGate:
         """Gate figures for diagnostics (empty with the gate off)."""
         if self.probability is None:
             return {}
-        return {'gnss_gate_probability': self.probability,
-                'gnss_gate_threshold': [self.quantile(m) for m in self.sizes],
-                'gnss_rejected': self.n_rejected, 'gnss_forced': self.n_forced,
-                'gnss_consecutive_rejects': self.consecutive_rejects}
+        k = self.name
+        return {f'{k}_gate_probability': self.probability,
+                f'{k}_gate_threshold': [self.quantile(m) for m in self.sizes],
+                f'{k}_rejected': self.n_rejected, f'{k}_forced': self.n_forced,
+                f'{k}_consecutive_rejects': self.consecutive_rejects}
+
+    @property
+    def _label(self):
+        return 'GNSS' if self.name == 'gnss' else f'the {self.name}'

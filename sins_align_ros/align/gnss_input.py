@@ -14,6 +14,11 @@ message is not given to the pipeline:
   clock jumped back (``clock_jump_back``) and the message is accepted;
 * ``covariance_too_large``: a reported horizontal sigma above 1 km (position) or
   100 m/s (velocity): the receiver says the solution is useless;
+* heading/in (an external heading): ``nan`` (a non-finite stamp or yaw), ``no_orientation``
+  (the message says it has none: ``orientation_covariance[0] = -1``);
+  ``stamp_not_increasing`` / ``clock_jump_back`` as for the others; a yaw variance that is
+  not finite or not in (1e-10, (pi/2)^2] rad^2 is ``covariance_implausible`` (the
+  configured ``heading_sigma_deg`` is used);
 * ``covariance_implausible`` (accepted): a reported variance that is not finite,
   zero or negative, or below (1 mm)^2 or (1 mm/s)^2: ignored, the configured sigma
   is used instead. (A velocity covariance that is all zero means unknown, as
@@ -34,6 +39,8 @@ CLOCK_JUMP_S = 5.0
 #: plausible reported variances: position m^2, velocity (m/s)^2
 POS_VAR_RANGE = (1e-6, 1e6)
 VEL_VAR_RANGE = (1e-6, 1e4)
+#: plausible reported yaw variances, rad^2
+YAW_VAR_RANGE = (1e-10, (np.pi / 2.0) ** 2)
 
 
 def reported_variances(var, lo=0.0):
@@ -51,7 +58,7 @@ class GnssInput:
         self.counts = Counter()
         self.notices = deque(maxlen=100)
         self.last_reason = ''
-        self._t_last = {'fix': None, 'vel': None}
+        self._t_last = {'fix': None, 'vel': None, 'heading': None}
 
     def pop_notices(self):
         """Return and clear the queued ``(key, text)`` notices."""
@@ -122,6 +129,25 @@ class GnssInput:
             return False
         return self._accept('vel', t, vel_var, VEL_VAR_RANGE)
 
+    def heading(self, t, yaw, yaw_var, has_orientation=True):
+        """Check an external yaw (rad): return its variance, None (configured) or False."""
+        if not has_orientation:
+            self._note('no_orientation', 'heading/in carries no orientation '
+                                         '(orientation_covariance[0] = -1): skipped')
+            return False
+        if not (np.isfinite(t) and np.isfinite(yaw)):
+            self._note('nan', 'non-finite value in heading/in: skipped')
+            return False
+        if yaw_var is not None and not (np.isfinite(yaw_var)
+                                        and YAW_VAR_RANGE[0] < yaw_var <= YAW_VAR_RANGE[1]):
+            self._note('covariance_implausible', f'heading/in yaw variance {yaw_var:.3g} is '
+                                                 'not plausible: heading_sigma_deg used')
+            yaw_var = None
+        if not self._stamp_ok('heading', t):
+            return False
+        self.counts['accepted_heading'] += 1
+        return yaw_var
+
     def _accept(self, kind, t, var, rng):
         """Check what fixes and velocities share: the reported variances, then the stamp."""
         v = self._variances(kind, var, rng)
@@ -134,5 +160,6 @@ class GnssInput:
     def rejected(self):
         """Number of GNSS messages skipped."""
         return sum(v for k, v in self.counts.items()
-                   if k not in ('accepted_fix', 'accepted_vel', 'clock_jump_back',
+                   if k not in ('accepted_fix', 'accepted_vel', 'accepted_heading',
+                                'clock_jump_back',
                                 'covariance_implausible'))

@@ -272,6 +272,10 @@ class IntegratedNavigation(GnssAidedEngine):
         self.heading_lost = False
         self.n_heading_reacquired += 1
 
+    def _heading_taken(self):
+        """Mark the heading found: an external heading was taken directly."""
+        self.heading_lost = False
+
     def inflate(self, factor):
         """Inflate as every aided engine does, then hold the heading in the linear range."""
         super().inflate(factor)

@@ -117,6 +117,12 @@ ALIGNMENT_PARAMS = (
           '(static_transform_publisher takes them as yaw, pitch, roll): the IMU data are '
           'turned into the vehicle frame at input and every output is the vehicle\'s '
           'attitude', -360.0, 360.0),
+    Param('heading_offset_deg', 0.0, 'external heading (heading/in): the direction of the '
+          'source\'s x axis (a GNSS compass\'s baseline) in the vehicle frame, deg '
+          'counter-clockwise from forward; the vehicle\'s yaw is the source\'s minus this',
+          -180.0, 180.0),
+    Param('heading_sigma_deg', 0.5, 'external heading: 1-sigma used when a heading/in '
+          'message reports no usable yaw variance, deg', 0.001, 90.0),
     Param('use_gnss_position', True, 'take latitude/height from a valid gnss/fix when one '
           'arrives before fine alignment starts'),
     Param('gyro_bias_dph', 0.01, 'gyro constant bias, 1 sigma, deg/h (filter model)',

@@ -19,6 +19,8 @@ every processed sample yields an output row (attitude, 1-sigma Euler angles, pha
 
 A filter failure restarts the alignment from coarse, keeping the GNSS history.
 """
+import math
+
 import numpy as np
 
 from ..models.stationary import unobservable_variance
@@ -27,6 +29,7 @@ from . import params as prm
 from .factory import is_aided, make_engine, noise_spec
 from .fine_stage import ALIGNED, FINE, Clock, FineStage
 from .gnss_buffer import GnssBuffer
+from .heading import HeadingBuffer, coarse_heading
 from .installation import Installation
 from .output import Output, Rows, assemble, unknown
 from .preprocess import Preprocessor
@@ -57,6 +60,8 @@ class AlignmentPipeline:
         #: the IMU mounting rotation and the GNSS lever arm (:mod:`.installation`)
         self.install = Installation.from_params(cfg)
         self.gnss = GnssBuffer()
+        #: the external heading (:mod:`.heading`)
+        self.headings = HeadingBuffer(math.radians(cfg['heading_offset_deg']))
         self.n_restarts = 0
         self.reset()
 
@@ -80,6 +85,12 @@ class AlignmentPipeline:
         self.position = None
         self.warnings = []
         self.gnss.reset(keep_history=keep_gnss_history)
+        if keep_gnss_history:
+            self.headings.pending.clear()
+        else:
+            self.headings.reset()
+        #: an external heading set the coarse heading
+        self.heading_measured = False
         self.report = ConditionReport()
         cfg = self.cfg
         w = cfg['preprocess_window'] + cfg['preprocess_window'] % 2
@@ -169,6 +180,15 @@ class AlignmentPipeline:
                                   self.install.speed_since(t - 3.0))
             if reason is not None:
                 self._diverged(reason)
+
+    def heading_fix(self, t, yaw, var):
+        """Record an external heading: the source's yaw (rad, REP-103) and its variance (rad^2).
+
+        ``heading_offset_deg`` turns it into the vehicle's. The coarse stage takes the last
+        one as its heading; while a fine filter runs, each is a yaw measurement applied when
+        the IMU stream passes its stamp (:mod:`.heading`).
+        """
+        self.headings.add(t, yaw, var, self.clock.t_last, queue=self.fine is not None)
 
     def start_clock(self, t0):
         """Set the stamp that the first increment starts from (before the first process call)."""
@@ -297,13 +317,30 @@ class AlignmentPipeline:
         if reason is not None:
             self._diverged(reason)
             return
-        no_heading = self.check is not None and not self.check.heading_observable
+        self._take_heading(res, window)
+        no_heading = (self.check is not None and not self.check.heading_observable
+                      and not self.heading_measured)
         # the self-check's finding replaces the coarse stage's own warning about the gyro
         self.warnings.extend(w for w in res.warnings
                              if not (no_heading and w.startswith('gyro bias')))
         self._start_engine(res)
         # fixes that came in during coarse alignment are history, not measurements
         self.gnss.pending.clear()
+
+    def _take_heading(self, res, window):
+        """Give the coarse result ``res`` the last external heading, if one is recent.
+
+        Its yaw is carried to the window's end with the gyros' up rate (a turning car).
+        """
+        t_end = self.clock.t_last
+        fix = self.headings.latest(t_end)
+        if fix is None:
+            return
+        tt, dth = window[0], window[1]
+        turned = float(res.C_b_n[2] @ dth[tt > fix.t].sum(axis=0))
+        res.C_b_n, res.sigma = coarse_heading(res.C_b_n, res.sigma, fix.yaw + turned, fix.var)
+        self.coarse_info['coarse_heading_source'] = 'external'
+        self.heading_measured = True
 
     def _self_check(self, window, at_rest):
         """Check the sensor model against the coarse window; widen it where they disagree."""
@@ -313,18 +350,21 @@ class AlignmentPipeline:
             self.noise = noise_spec(self.cfg)
         self.warnings.extend(self.check.findings)
         warning = self_check.heading_warning(self.check, at_rest, self.aided)
-        if warning:
+        if warning and not self.headings.latest(self.clock.t_last):
             self.warnings.append(warning)
 
     def _start_engine(self, start):
         c = self.check
-        heading_known = c is None or c.heading_observable or (self.aided and not c.at_rest)
+        heading_known = (c is None or c.heading_observable or (self.aided and not c.at_rest)
+                         or self.heading_measured)
         engine, floor, warnings = make_engine(self.cfg, self.noise, start, bool(self.gnss.vels),
                                               heading_known)
         self.warnings.extend(warnings)
+        if self.heading_measured and hasattr(engine, 'heading_measured'):
+            engine.heading_measured()
         self.fine = FineStage(engine, floor, self.clock, self.cfg, heading_known,
                               unobservable_variance(start.position[0], self.noise)[0],
-                              self.install, self.noise)
+                              self.install, self.noise, self.headings)
 
     def _fill_last(self, out):
         """Put the coarse result into the last row of a coarse block."""

@@ -20,6 +20,7 @@ before anything that must happen between two samples: a GNSS message, a bridge,
 a restart). Either way every call returns an :class:`~.output.Output` (possibly
 empty) with the rows it produced.
 """
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -178,6 +179,20 @@ class AlignmentSession:
         self.pipeline.velocity_fix(t, v_n, vel_var=var)
         return out
 
+    def heading(self, t, yaw, yaw_var=None, has_orientation=True):
+        """Take one external heading: the source's REP-103 yaw (rad) and its variance (rad^2).
+
+        ``yaw_var`` None (or implausible): ``heading_sigma_deg`` is used.
+        """
+        var = self.gnss_input.heading(t, yaw, yaw_var, has_orientation)
+        if var is False:
+            return Output.empty()
+        if var is None:
+            var = math.radians(self.pipeline.cfg['heading_sigma_deg']) ** 2
+        out = self._drain()
+        self.pipeline.heading_fix(t, yaw, var)
+        return out
+
     def finish(self):
         """Process what is buffered and what the pre-processing stage holds (end of input)."""
         return Output.concat([self._drain(), self.pipeline.flush()])
@@ -208,7 +223,7 @@ class AlignmentSession:
         return dict(self.imu_input.counts), dict(self.gnss_input.counts)
 
 
-def feed_arrays(p, imu, gnss, use_velocity=True, block=100, callback=None):
+def feed_arrays(p, imu, gnss, use_velocity=True, block=100, callback=None, heading=None):
     """Feed whole simulated or recorded increments to pipeline ``p`` in time order.
 
     ``imu`` has ``t``, ``dtheta``, ``dv`` (N, ...) (increments: they bypass the input
@@ -217,9 +232,12 @@ def feed_arrays(p, imu, gnss, use_velocity=True, block=100, callback=None):
     ``pos_cov``/``vel_cov`` (ENU variances), or is None. GNSS epochs are given before
     the IMU block that passes their stamps, as a live node would receive them.
     ``callback(p)``, if given, is called after each block (e.g. to record filter
-    internals). Returns the :class:`~.output.Output`.
+    internals). ``heading``: an external heading's ``t``, ``yaw`` (rad, the source's),
+    ``var`` (M,) (``sim.gnss.heading_measurements``), given the same way, or None.
+    Returns the :class:`~.output.Output`.
     """
-    outs, gi = [], 0
+    outs, gi, hi = [], 0, 0
+    n_h = 0 if heading is None else len(heading.t)
     n = len(imu.t)
     m = 0 if gnss is None else len(gnss.t)
     for i in range(0, n, block):
@@ -232,6 +250,9 @@ def feed_arrays(p, imu, gnss, use_velocity=True, block=100, callback=None):
                     p.velocity_fix(gnss.t[gi], gnss.v_n[gi],
                                    vel_var=np.asarray(gnss.vel_cov)[:2])
             gi += 1
+        while hi < n_h and heading.t[hi] <= imu.t[j - 1] + 1e-9:
+            p.heading_fix(heading.t[hi], heading.yaw[hi], heading.var[hi])
+            hi += 1
         outs.append(p.feed(imu.t[i:j], imu.dtheta[i:j], imu.dv[i:j]))
         if callback is not None:
             callback(p)

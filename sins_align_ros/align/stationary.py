@@ -20,6 +20,8 @@ of 300 s.
 import numpy as np
 
 from ..filters import kf
+from .gnss_gate import GnssGate
+from .heading import LINEAR_MAX, take_heading, yaw_update
 from ..models.stationary import unobservable_variance
 from ..nav import earth
 from ..nav.frames import rotvec_to_dcm
@@ -90,6 +92,8 @@ class StationaryEngine:
         #: the fine stage may restage this filter (a large initial misalignment)
         self.restage_helps = restage_helps(sigma_phi, lat, noise)
         self.since_update = 0.0
+        #: the external heading's innovation gate (the factory sets the GNSS gate's figures)
+        self.heading_gate = GnssGate(0.9999, sizes=(1,), name='heading')
         self.n_updates = 0
         self.last_nis = float('nan')
         self._disc_cache = {}
@@ -135,14 +139,57 @@ class StationaryEngine:
         self.x, self.P, y, S = kf.update(self.x, self.P, z, self.H, self.R)
         self.last_nis = kf.nis(y, S)
         self.n_updates += 1
-        # feedback: C = exp([phi x]) C~ (seed 002 eq. 3), velocity error removed
+        self._feed_back()
+        self.since_update = 0.0
+
+    def _feed_back(self):
+        """Feedback: ``C = exp([phi x]) C~`` (seed 002 eq. 3), velocity error removed."""
+        m = self.model
         self.mech.C_b_n = rotvec_to_dcm(self.x[m.i_phi]) @ self.mech.C_b_n
         dvel = np.zeros(3)
         dvel[m.meas] = self.x[m.i_v]
         self.mech.correct_velocity(dvel)
         self.x[m.i_phi] = 0.0
         self.x[m.i_v] = 0.0
-        self.since_update = 0.0
+
+    def update_heading(self, fix, t_now, w_up=0.0):
+        """Take an external heading ``fix`` (:class:`~.heading.HeadingFix`) at ``t_now``.
+
+        A filter epoch (zero velocity) over the time since the last one first, then the yaw
+        update (:func:`~.heading.yaw_update`; directly above :data:`~.heading.LINEAR_MAX`)
+        and the feedback. Measured, the heading no longer rests on the gyro bias: the 10/12
+        models, whose bias states the measured heading separates, drop their heading
+        :attr:`bound`. (``reduced7`` has no bias states: the gyrocompass keeps pulling it
+        towards ``eps_E / (W cos L)``, and its output floor stays; docs/filters.md.)
+        Returns ``'used'``, ``'taken'`` or ``'rejected'``.
+        """
+        if self.since_update > 1e-6:
+            self._epoch(self.since_update)
+        m = self.model
+        yaw = fix.yaw + w_up * (t_now - fix.t)
+        k_up = np.arange(m.n)[m.i_phi][2]
+        if self.P[k_up, k_up] > LINEAR_MAX ** 2:
+            self.mech.C_b_n, self.P = take_heading(self.mech.C_b_n, self.P, k_up, yaw, fix.var)
+            self.x[k_up] = 0.0
+            result = 'taken'
+        else:
+            max_nis = self.heading_gate.threshold(1, self)
+            x, P, y, S, ok = yaw_update(self.x, self.P, m.i_phi, self.mech.C_b_n, yaw, fix.var,
+                                        max_nis)
+            if not ok:
+                self.heading_gate.rejected(fix.t, y * y / S, max_nis, np.array([k_up]),
+                                           np.array([y]))
+                return 'rejected'
+            self.heading_gate.accepted()
+            self.x, self.P = x, P
+            self._feed_back()
+            result = 'used'
+        self.heading_measured()
+        return result
+
+    def heading_measured(self):
+        """Drop the heading's :attr:`bound`: an external heading, not the gyro bias, sets it."""
+        self.bound = np.array([self.bound[0], self.bound[1], 0.0])
 
     def _discretize(self, dt):
         m = self.model
@@ -213,4 +260,7 @@ class StationaryEngine:
 
     def status(self):
         """Filter internals for diagnostics."""
-        return {'filter_updates': self.n_updates, 'innovation_nis': self.last_nis}
+        s = {'filter_updates': self.n_updates, 'innovation_nis': self.last_nis}
+        if self.heading_gate.n_rejected or self.bound[2] == 0.0:
+            s.update(self.heading_gate.status())
+        return s

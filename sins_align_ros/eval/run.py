@@ -16,6 +16,7 @@ import numpy as np
 from ..align.output import Output
 from ..align.pipeline import AlignmentPipeline
 from ..align.session import feed_arrays
+from ..sim.gnss import heading_measurements
 from ..sim.presets import alignment_params
 from .cache import simulate_cached
 from .errors import attitude_errors, final_error, truth_rows
@@ -82,20 +83,22 @@ class Run:
         return float(self.out.t[fine[0]]) if len(fine) else float('nan')
 
 
-def run_pipeline(params, data, use_velocity=True, block=100, callback=None, t0=0.0):
+def run_pipeline(params, data, use_velocity=True, block=100, callback=None, t0=0.0,
+                 heading=None):
     """Feed ``data`` to a new ``AlignmentPipeline(params)`` whose clock starts at ``t0``.
 
     ``data``: ``imu`` (t, dtheta, dv, ...) and ``gnss`` (epochs or None), as a
     simulation or :func:`~.recordings.fog_data`. ``use_velocity``, ``block`` and
     ``callback`` go to :func:`~sins_align_ros.align.session.feed_arrays`; ``block``
-    None feeds the IMU in one call (no GNSS allowed). Returns a :class:`Run`.
+    None feeds the IMU in one call (no GNSS allowed); ``heading``: an external heading's
+    epochs (``feed_arrays``). Returns a :class:`Run`.
     """
     p = AlignmentPipeline(params)
     p.start_clock(t0)
     imu = data.imu
     w0 = time.perf_counter()
     if block is None:
-        if data.gnss is not None:
+        if data.gnss is not None or heading is not None:
             raise ValueError('block=None feeds the IMU alone: give data without GNSS')
         out = p.feed(imu.t, imu.dtheta, imu.dv)
         rest = p.flush()
@@ -103,12 +106,12 @@ def run_pipeline(params, data, use_velocity=True, block=100, callback=None, t0=0
             out = Output.concat([out, rest])
     else:
         out = feed_arrays(p, imu, data.gnss, use_velocity=use_velocity, block=block,
-                          callback=callback)
+                          callback=callback, heading=heading)
     return Run(out, data, p, time.perf_counter() - w0)
 
 
 def run_scenario(sc, seed, fine_filter, duration=None, cached=False, use_velocity=True,
-                 block=100, callback=None, **overrides):
+                 block=100, callback=None, heading_sigma_deg=None, **overrides):
     """Simulate scenario ``sc`` for ``seed`` and run the pipeline on it.
 
     ``sc``: a :class:`~sins_align_ros.sim.presets.Scenario` or a name for
@@ -116,15 +119,22 @@ def run_scenario(sc, seed, fine_filter, duration=None, cached=False, use_velocit
     that describe the scenario's sensors (``sim.presets.alignment_params``) with
     ``fine_filter`` and ``overrides``. ``cached``: simulate through
     :func:`~.cache.simulate_cached`. Returns a :class:`Run` (``run.final`` is the
-    final error against truth).
+    final error against truth). ``heading_sigma_deg``: add an external heading at 1 Hz
+    with that white noise (``sim.gnss.heading_measurements``, its own seeded stream).
     """
     if isinstance(sc, str):
         sc = named(sc, duration)
     elif duration is not None:
         raise ValueError('duration applies to a scenario name only')
     data = simulate_cached(sc, seed) if cached else simulate(sc, seed)
+    heading = None
+    if heading_sigma_deg is not None:
+        rng = np.random.default_rng(np.random.SeedSequence([seed, 23]))
+        heading = heading_measurements(data.imu.t, data.imu.euler[:, 2],
+                                       np.radians(heading_sigma_deg), 1.0, rng)
     run = run_pipeline(alignment_params(sc, fine_filter, **overrides), data,
-                       use_velocity=use_velocity, block=block, callback=callback)
+                       use_velocity=use_velocity, block=block, callback=callback,
+                       heading=heading)
     run.scenario = sc
     return run
 

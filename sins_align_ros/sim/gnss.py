@@ -7,6 +7,7 @@ Bernoulli-contaminated Gaussian (seed 004 eq. 25): with probability ``p`` an
 epoch's noise comes from ``N(0, scale^2 R)`` instead of ``N(0, R)``.
 """
 from dataclasses import dataclass, replace
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -132,3 +133,21 @@ class GnssErrors:
         return GnssEpoch(t=np.asarray(t, float), lat=lat, lon=lon, h=h, v_n=v_n + ve,
                          pos_err_m=pe, fix=fix, outlier=outlier,
                          pos_cov=s.pos_sigma ** 2, vel_cov=s.vel_sigma_enu ** 2)
+
+
+def heading_measurements(t, yaw_true, sigma, rate_hz, rng, t_start=0.0):
+    """Simulate an external heading source (a GNSS compass): its epochs at ``rate_hz``.
+
+    ``t`` (N,) and ``yaw_true`` (N,) rad: the vehicle's true yaw at the IMU samples;
+    ``sigma`` rad, white (a GNSS compass's noise over a 1 s epoch); ``rng`` a numpy
+    Generator. Returns a namespace with ``t`` (M,) (multiples of the period from
+    ``t_start``, within the samples), ``yaw`` (M,) rad wrapped into (-pi, pi] and ``var``
+    (M,) rad^2 (the variance the source reports).
+    """
+    period = 1.0 / float(rate_hz)
+    k0 = int(np.ceil((max(t_start, t[0]) + 1e-9) / period))
+    tk = np.arange(k0, int(np.floor(t[-1] / period)) + 1) * period
+    idx = np.clip(np.searchsorted(t, tk - 1e-9), 0, len(t) - 1)
+    yaw = np.unwrap(yaw_true)[idx] + sigma * rng.standard_normal(len(tk))
+    yaw = np.pi - np.mod(np.pi - yaw, 2.0 * np.pi)
+    return SimpleNamespace(t=t[idx], yaw=yaw, var=np.full(len(tk), float(sigma) ** 2))
