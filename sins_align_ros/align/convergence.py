@@ -3,7 +3,7 @@
 The heading 1-sigma of the last ten seconds is kept; once a stage has run for
 ``min_duration`` seconds and the sigma has fallen by less than 2 % over at least
 nine seconds, the stage has converged (the pipeline then restages the stationary
-filter or declares ``aligned``).
+filter or declares ``aligned``). Epochs at the same stamp count once, with the last sigma.
 """
 from collections import deque
 
@@ -31,6 +31,10 @@ class ConvergenceMonitor:
     def converged(self, t, sigma_heading):
         """Record the heading sigma (rad) at ``t``; tell whether the stage has converged."""
         h = self.history
+        if h and h[-1][0] == t:
+            # several epochs at one stamp (GNSS, then an external heading): the last counts,
+            # else the window could start at the higher value of a pair for ever
+            h.pop()
         h.append((t, sigma_heading))
         while h and h[0][0] < t - WINDOW_S:
             h.popleft()
