@@ -25,6 +25,7 @@ setup(
     entry_points={
         'console_scripts': [
             'alignment_node = sins_align_ros.ros.alignment_node:main',
+            'alignment_lifecycle_node = sins_align_ros.ros.alignment_lifecycle_node:main',
             'simulator_node = sins_align_ros.ros.simulator_node:main',
             'sins_align_demo = sins_align_ros.ros.demo:main',
             'sins_align_replay = sins_align_ros.cli.replay:main',

@@ -10,7 +10,7 @@ import pytest
 import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
-EXECUTABLES = ('alignment_node', 'simulator_node')
+EXECUTABLES = ('alignment_node', 'alignment_lifecycle_node', 'simulator_node')
 
 
 def test_package_xml_is_format3_ament_python_with_rosdep_keys():

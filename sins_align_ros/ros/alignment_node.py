@@ -36,6 +36,9 @@ reset or the period's timer flushes the batch first.
 Service ``~/reset`` (std_srvs/Trigger) restarts the alignment in any phase.
 Changing an alignment parameter at runtime (``fine_filter`` included) restarts
 the alignment with it; invalid values are refused with the reason.
+
+:class:`AlignmentShell` is the body; :class:`AlignmentNode` starts it at construction,
+the managed node of :mod:`.alignment_lifecycle_node` in its lifecycle transitions.
 """
 import sys
 import time
@@ -69,13 +72,32 @@ _BY_NAME = {p.name: p for p in PARAMS}
 _SOURCES = {'imu': 'imu/data_raw', 'gnss': 'gnss'}
 
 
-class AlignmentNode(Node):
-    """Thin ROS shell around an alignment session; see the module docstring."""
+class AlignmentShell:
+    """The alignment node's body, a mixin for an rclpy ``Node``; see the module docstring.
 
-    def __init__(self, **kwargs):
-        super().__init__('alignment_node', **kwargs)
-        self.p = declare(self, PARAMS)
+    It holds the session, the input callbacks and their batching, the output, the
+    ``~/reset`` service and the diagnostics. :class:`AlignmentNode` builds and starts it in
+    its constructor; the managed node (:mod:`.alignment_lifecycle_node`) in its lifecycle
+    transitions. The pieces: :meth:`_declare_params`, :meth:`_start_session` (builds the
+    session from the parameters; ``ValueError`` when they are refused),
+    :meth:`_create_outputs` (publishers, ``~/reset``, timers) and :meth:`_subscribe`.
+    """
+
+    #: the alignment session (None: a managed node that is not configured)
+    session = None
+
+    def _declare_params(self, check=True):
+        """Declare the parameters (``check`` false: keep invalid values for a later check)."""
+        self.p = declare(self, PARAMS, check=check)
         self._align_values = {k: v for k, v in self.p.items() if k in _ALIGN_NAMES}
+        self.add_on_set_parameters_callback(self._check_pipeline_params)
+        self.add_post_set_parameters_callback(self._apply_params)
+
+    def _start_session(self):
+        """Build the session from the parameters and start the run's state afresh.
+
+        Raises ``ValueError`` with the reason when the parameters are refused.
+        """
         self.session = AlignmentSession(self._align_values)   # ValueError: refused
         # compile the numeric kernels now, not at the coarse window's end amid the data
         self.get_logger().debug(f'numeric kernels ready in {kernels.warm_up():.2f} s')
@@ -90,36 +112,46 @@ class AlignmentNode(Node):
         self._batch = []
         self._batch_wall = 0.0
         self._euler = Vector3Stamped()          # re-used: publish serialises at the call
-        self.add_on_set_parameters_callback(self._check_pipeline_params)
-        self.add_post_set_parameters_callback(self._apply_params)
-        imu_qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT,
-                             history=HistoryPolicy.KEEP_LAST)
-        self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_qos)
-        gnss_qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT,
-                              history=HistoryPolicy.KEEP_LAST)
-        self.create_subscription(NavSatFix, 'gnss/fix', self._on_fix, gnss_qos)
-        self.create_subscription(TwistWithCovarianceStamped, 'gnss/vel', self._on_vel,
-                                 gnss_qos)
-        self.pub_imu = self.create_publisher(Imu, 'imu/data', 50)
-        self.pub_euler = self.create_publisher(Vector3Stamped, '~/euler', 50)
-        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        self.pub_odom = self.create_publisher(Odometry, '~/odom', 50)
-        self.create_service(Trigger, '~/reset', self._on_reset)
         self.counts = {'imu': 0}
         #: messages received per topic (before any check)
         self.received = Counter()
         self._last_imu_wall = None
-        self.create_timer(self.p['diagnostic_period'], self._publish_diagnostics)
+
+    def _subscribe(self):
+        """Subscribe to the input topics; return the subscriptions."""
+        imu_qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT,
+                             history=HistoryPolicy.KEEP_LAST)
+        gnss_qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT,
+                              history=HistoryPolicy.KEEP_LAST)
+        return [self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_qos),
+                self.create_subscription(NavSatFix, 'gnss/fix', self._on_fix, gnss_qos),
+                self.create_subscription(TwistWithCovarianceStamped, 'gnss/vel',
+                                         self._on_vel, gnss_qos)]
+
+    def _create_outputs(self, create_publisher):
+        """Create the publishers with ``create_publisher``, ``~/reset`` and the timers.
+
+        Returns the service and the timers (the publishers become ``pub_*``).
+        """
+        self.pub_imu = create_publisher(Imu, 'imu/data', 50)
+        self.pub_euler = create_publisher(Vector3Stamped, '~/euler', 50)
+        self.pub_diag = create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self.pub_odom = create_publisher(Odometry, '~/odom', 50)
+        made = [self.create_service(Trigger, '~/reset', self._on_reset),
+                self.create_timer(self.p['diagnostic_period'], self._publish_diagnostics)]
         if self.p['imu_batch_period'] > 0.0:
-            self.create_timer(self.p['imu_batch_period'], self._on_batch_timer)
+            made.append(self.create_timer(self.p['imu_batch_period'], self._on_batch_timer))
+        return made
+
+    def _log_start(self):
         self.get_logger().info(
             f"fine filter {self.p['fine_filter']}, coarse {self.p['coarse_method']} "
             f"{self.p['coarse_duration']:.0f} s; waiting for imu/data_raw")
 
     @property
     def pipeline(self):
-        """Return the current pipeline of the session; a restart replaces it."""
-        return self.session.pipeline
+        """Return the current pipeline of the session (None without one); a restart replaces it."""
+        return None if self.session is None else self.session.pipeline
 
     # -- parameters and restarts ------------------------------------------------------------
     def _check_pipeline_params(self, changes):
@@ -138,7 +170,7 @@ class AlignmentNode(Node):
                 else c.value
             if c.name in _ALIGN_NAMES:
                 self._align_values[c.name] = c.value
-        if names:
+        if names and self.session is not None:     # a managed node not configured: stored
             self._flush_imu()
             self.session.restart(f'parameters changed: {", ".join(names)}',
                                  values=self._align_values)
@@ -292,6 +324,18 @@ class AlignmentNode(Node):
         arr.header.stamp = self.get_clock().now().to_msg()
         arr.status = [st]
         self.pub_diag.publish(arr)
+
+
+class AlignmentNode(AlignmentShell, Node):
+    """Thin ROS shell around an alignment session, started at construction."""
+
+    def __init__(self, **kwargs):
+        super().__init__('alignment_node', **kwargs)
+        self._declare_params()
+        self._start_session()
+        self._subscribe()
+        self._create_outputs(self.create_publisher)
+        self._log_start()
 
 
 def _to_vehicle_frame(msgs, wf, C_s_v, frame_id):

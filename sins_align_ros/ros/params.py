@@ -28,19 +28,20 @@ def descriptor(p):
     return d
 
 
-def declare(node, params):
+def declare(node, params, check=True):
     """Declare ``params`` on ``node``, validate them now and on every later change.
 
     Returns a dict name -> current value. Invalid start-up values raise
-    ``ValueError`` with the reason; invalid runtime changes are refused with the
-    reason in the SetParametersResult.
+    ``ValueError`` with the reason (with ``check`` false they are kept, for a managed
+    node that checks them when it is configured); invalid runtime changes are refused
+    with the reason in the SetParametersResult.
     """
     by_name = {p.name: p for p in params}
     values = {}
     for p in params:
         default = list(p.default) if p.is_array else p.default
         value = node.declare_parameter(p.name, default, descriptor(p)).value
-        err = p.check(value)
+        err = p.check(value) if check else None
         if err:
             raise ValueError(err)
         values[p.name] = p.normalise(value)
