@@ -445,3 +445,56 @@ def test_executables_start_and_exit_cleanly_on_sigint(exe, ros_context, domain_i
             proc.kill()
     assert proc.returncode == 0, err
     assert 'Traceback' not in err and 'Traceback' not in out
+
+
+def test_heading_in_gives_a_still_mems_imu_its_heading(ros_context):
+    """heading/in (a GNSS compass bridged to sensor_msgs/Imu) with heading_offset_deg.
+
+    The model's gyro (100 deg/h) cannot see Earth rate: without the compass the heading
+    is published as unknown. The compass's baseline points 90 deg left of forward, so it
+    reports the vehicle's yaw + 90 deg; one message without an orientation is refused.
+    """
+    from test_lifecycle import RPY, still_imu
+    from sins_align_ros.nav.frames import euler_to_quat
+    from sins_align_ros.ros.conversions import ns_to_stamp
+    node = AlignmentNode(context=ros_context, parameter_overrides=[
+        Parameter('coarse_duration', value=2.0), Parameter('fine_filter', value='stationary12'),
+        Parameter('gyro_bias_dph', value=100.0), Parameter('initial_latitude_deg', value=34.0),
+        Parameter('heading_offset_deg', value=90.0), Parameter('diagnostic_period', value=0.2),
+        Parameter('imu_batch_period', value=0.0)])
+    cl = rclpy.create_node('compass', context=ros_context)
+    qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
+    pub_imu = cl.create_publisher(Imu, 'imu/data_raw', qos)
+    pub_hd = cl.create_publisher(Imu, 'heading/in', qos)
+    out, diag = [], []
+    cl.create_subscription(Imu, 'imu/data', out.append, qos)
+    cl.create_subscription(DiagnosticArray, '/diagnostics', diag.append, qos)
+    ex = SingleThreadedExecutor(context=ros_context)
+    for n in (node, cl):
+        ex.add_node(n)
+    assert spin_until(ex, lambda: pub_imu.get_subscription_count() and
+                      pub_hd.get_subscription_count(), timeout_s=10.0)
+    q = euler_to_quat([0.0, 0.0, RPY[2] + 90.0 * DEG])
+    for i in range(600):                                   # 6 s at 100 Hz
+        if i % 100 == 0:
+            h = Imu()
+            h.header.stamp = ns_to_stamp(100 * 10 ** 9 + i * 10_000_000)
+            h.orientation.x, h.orientation.y, h.orientation.z, h.orientation.w = q
+            h.orientation_covariance[8] = (0.2 * DEG) ** 2
+            if i == 300:
+                h.orientation_covariance[0] = -1.0         # no orientation: refused
+            pub_hd.publish(h)
+            ex.spin_once(timeout_sec=0.0)
+        pub_imu.publish(still_imu(i))
+        ex.spin_once(timeout_sec=0.0)
+    assert spin_until(ex, lambda: len(out) >= 590, timeout_s=20.0)
+    last = out[-1]
+    yaw = quat_to_euler([last.orientation.x, last.orientation.y, last.orientation.z,
+                         last.orientation.w])[2]
+    assert abs(yaw - RPY[2]) < 0.05 * DEG
+    assert 0.0 < last.orientation_covariance[8] < (0.3 * DEG) ** 2
+    assert node.pipeline.coarse_info['coarse_heading_source'] == 'external'
+    assert spin_until(ex, lambda: diag and _diag_values(diag[-1]).get(
+        'gnss_input_no_orientation') == '1', timeout_s=5.0)
+    assert _diag_values(diag[-1])['gnss_input_accepted_heading'] == '5'
+    ex.shutdown()

@@ -112,6 +112,18 @@ def quat_to_euler(q):
     return Rotation.from_quat(q).as_euler('xyz')
 
 
+def quat_to_yaw(q):
+    """REP-103 yaw (rad) of quaternion ``(x, y, z, w)`` body -> ENU; NaN for a zero quaternion.
+
+    ``atan2(2 (w z + x y), w^2 + x^2 - y^2 - z^2)``: the yaw of ``Rz(y) Ry(p) Rx(r)``, the
+    same as :func:`dcm_to_euler`'s, for any norm.
+    """
+    x, y, z, w = (float(v) for v in q)
+    if x * x + y * y + z * z + w * w == 0.0:
+        return float('nan')
+    return math.atan2(2.0 * (w * z + x * y), w * w + x * x - y * y - z * z)
+
+
 def dcm_to_quat(C_b_n):
     """Quaternion ``(x, y, z, w)`` of ``C_b_n``, sign chosen with w >= 0.
 

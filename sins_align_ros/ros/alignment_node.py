@@ -3,7 +3,9 @@
 Subscribes ``imu/data_raw`` (sensor_msgs/Imu; best effort with a deep queue so
 it takes both best-effort and reliable publishers), ``gnss/fix``
 (sensor_msgs/NavSatFix) and ``gnss/vel`` (geometry_msgs/TwistWithCovarianceStamped,
-ENU; used by the GNSS-aided filters). Every message goes into an
+ENU; used by the GNSS-aided filters) and ``heading/in`` (sensor_msgs/Imu: an external
+heading, the yaw of its orientation and ``orientation_covariance[8]``; see
+docs/alignment_node.md). Every message goes into an
 :class:`~sins_align_ros.align.session.AlignmentSession` — the object the replay
 tool drives too, with the input checks and restart rules — and the node publishes:
 
@@ -63,6 +65,7 @@ from ..align import params as prm
 from ..align.odometry import OdometryFrame
 from ..align.session import AlignmentSession
 from ..nav import kernels
+from ..nav.frames import quat_to_yaw
 
 NODE_PARAMS = prm.NODE_PARAMS
 PARAMS = prm.ALIGNMENT_PARAMS + NODE_PARAMS
@@ -126,7 +129,8 @@ class AlignmentShell:
         return [self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_qos),
                 self.create_subscription(NavSatFix, 'gnss/fix', self._on_fix, gnss_qos),
                 self.create_subscription(TwistWithCovarianceStamped, 'gnss/vel',
-                                         self._on_vel, gnss_qos)]
+                                         self._on_vel, gnss_qos),
+                self.create_subscription(Imu, 'heading/in', self._on_heading, gnss_qos)]
 
     def _create_outputs(self, create_publisher):
         """Create the publishers with ``create_publisher``, ``~/reset`` and the timers.
@@ -209,6 +213,16 @@ class AlignmentShell:
         self._flush_imu()
         v, c = msg.twist.twist.linear, msg.twist.covariance
         self.session.velocity(stamp_to_sec(msg.header.stamp), (v.x, v.y, v.z), (c[0], c[7]))
+        self._drain()
+
+    def _on_heading(self, msg):
+        """Take an external heading: the yaw of the orientation and its variance (REP-145)."""
+        self.received['heading/in'] += 1
+        self._flush_imu()
+        o, c = msg.orientation, msg.orientation_covariance
+        var = None if c[8] == 0.0 else c[8]          # all zero: unknown (heading_sigma_deg)
+        self.session.heading(stamp_to_sec(msg.header.stamp), quat_to_yaw((o.x, o.y, o.z, o.w)),
+                             var, has_orientation=c[0] != -1.0)
         self._drain()
 
     def _on_imu(self, msg):
