@@ -447,6 +447,17 @@ def test_executables_start_and_exit_cleanly_on_sigint(exe, ros_context, domain_i
     assert 'Traceback' not in err and 'Traceback' not in out
 
 
+@pytest.mark.parametrize('exe', ['alignment_node', 'alignment_lifecycle_node'])
+def test_out_of_range_start_parameter_exits_with_one_line(exe, domain_id):
+    """A value outside its declared range: exit code 2 and the reason, no traceback."""
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id),
+               ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    proc = subprocess.run([resolve_executable(exe), '--ros-args', '-p', 'coarse_duration:=0.1'],
+                          env=env, capture_output=True, text=True, timeout=60.0)
+    assert proc.returncode == 2, proc.stderr
+    assert 'coarse_duration' in proc.stderr and 'Traceback' not in proc.stderr
+
+
 def test_heading_in_gives_a_still_mems_imu_its_heading(ros_context):
     """heading/in (a GNSS compass bridged to sensor_msgs/Imu) with heading_offset_deg.
 

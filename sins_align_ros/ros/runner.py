@@ -9,13 +9,15 @@ import subprocess
 import sys
 
 import rclpy
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 
 
 def run(make_node, name, make_executor=None, done=lambda node: False, args=None):
     """Create a node with ``make_node()``, spin it until shutdown or ``done(node)``.
 
-    Invalid parameters (``ValueError`` from the node) end with one line on stderr
+    Invalid parameters (``ValueError`` from the node, rclpy's ``ParameterException`` for a
+    value outside a declared range) end with one line on stderr
     and exit code 2; SIGINT ends with exit code 0. Returns the exit code.
     """
     rclpy.init(args=args)
@@ -32,7 +34,8 @@ def run(make_node, name, make_executor=None, done=lambda node: False, args=None)
             executor.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except ValueError as exc:
+    except (ValueError, ParameterException) as exc:
+        # ParameterException: a start-up value outside a declared range (rclpy refuses it)
         print(f'{name}: {exc}', file=sys.stderr)
         return 2
     finally:
