@@ -28,7 +28,7 @@ from ..filters.kf import nis
 from ..nav.mechanization import MechanizationOptions, Strapdown
 from ..units import DPH, UG
 from .gnss_gate import FilterDiverged, GnssGate
-from .heading import LINEAR_MAX, take_heading, yaw_update
+from .heading import LINEAR_MAX, gated_yaw_update, take_heading
 
 #: the longest interval the error model is propagated without a measurement, s
 MAX_PREDICT = 2.0
@@ -517,17 +517,11 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies):
             self.heading_prior_var = None
             self._heading_taken()
             return 'taken'
-        max_nis = self.heading_gate.threshold(1, kf)
-        x, P, y, S, ok = yaw_update(kf.x, kf.P, self.i_phi, self.mech.C_b_n, yaw, fix.var,
-                                    max_nis)
-        if not ok:
-            self.heading_gate.rejected(fix.t, y * y / S, max_nis, np.array([k_up]),
-                                       np.array([y]))
+        upd = gated_yaw_update(self.heading_gate, kf, kf.x, kf.P, self.i_phi, self.mech.C_b_n,
+                               fix, yaw)
+        if upd is None:
             return 'rejected'
-        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
-            raise FilterDiverged(f'filter diverged at t={fix.t:.3f} s (heading update)')
-        kf.x, kf.P = x, P
-        self.heading_gate.accepted()
+        kf.x, kf.P = upd
         self._feedback(None)
         return 'used'
 

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..filters import kf
 from .gnss_gate import GnssGate
-from .heading import LINEAR_MAX, take_heading, yaw_update
+from .heading import LINEAR_MAX, gated_yaw_update, take_heading
 from ..models.stationary import unobservable_variance
 from ..nav import earth
 from ..nav.frames import rotvec_to_dcm
@@ -173,15 +173,11 @@ class StationaryEngine:
             self.x[k_up] = 0.0
             result = 'taken'
         else:
-            max_nis = self.heading_gate.threshold(1, self)
-            x, P, y, S, ok = yaw_update(self.x, self.P, m.i_phi, self.mech.C_b_n, yaw, fix.var,
-                                        max_nis)
-            if not ok:
-                self.heading_gate.rejected(fix.t, y * y / S, max_nis, np.array([k_up]),
-                                           np.array([y]))
+            upd = gated_yaw_update(self.heading_gate, self, self.x, self.P, m.i_phi,
+                                   self.mech.C_b_n, fix, yaw)
+            if upd is None:
                 return 'rejected'
-            self.heading_gate.accepted()
-            self.x, self.P = x, P
+            self.x, self.P = upd
             self._feed_back()
             result = 'used'
         self.heading_measured()
