@@ -370,10 +370,12 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies):
             i = j
         return Block(C, nav, predicted, n)
 
-    def predict(self):
-        """Predict over the interval so far without a measurement (an epoch without GNSS).
+    def predict(self, without_gnss=True):
+        """Predict over the interval so far without a GNSS measurement.
 
-        Raises :class:`FilterDiverged` when the numbers break down.
+        ``without_gnss``: count it as an epoch without GNSS (``predict_only_epochs``); an
+        external heading's epoch predicts too but is not one. Raises
+        :class:`FilterDiverged` when the numbers break down.
         """
         try:
             fx = self._transition()
@@ -381,7 +383,7 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies):
             self.kf.predict(fx)
         except (np.linalg.LinAlgError, ValueError) as exc:
             raise FilterDiverged(f'filter diverged in a prediction ({exc})') from None
-        self.n_predict_only += 1
+        self.n_predict_only += without_gnss
         self._restart_interval()
 
     def _correct_imu(self, dtheta, dv, dt):
@@ -501,7 +503,7 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies):
         ``'used'``, ``'taken'`` or ``'rejected'``; raises :class:`FilterDiverged`.
         """
         if self.sums.T > 1e-6:
-            self.predict()
+            self.predict(without_gnss=False)
         kf = self.kf
         if self.heading_gate is None:
             self.heading_gate = GnssGate(self.gate.probability, self.gate.max_rejects, (1,),
