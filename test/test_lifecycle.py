@@ -20,7 +20,7 @@ from lifecycle_msgs.srv import ChangeState, GetState  # noqa: E402
 from rcl_interfaces.msg import Log  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
-from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import Imu  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
@@ -75,7 +75,11 @@ class Client:
         self.out, self.diag, self.log = [], [], []
         self.sub_out = self.cl.create_subscription(Imu, 'imu/data', self.out.append, RELIABLE)
         self.cl.create_subscription(DiagnosticArray, '/diagnostics', self.diag.append, RELIABLE)
-        self.cl.create_subscription(Log, '/rosout', self.log.append, RELIABLE)
+        # /rosout keeps its last messages (transient local): a subscription that matched
+        # after the node logged still gets them (a discovery race failed CI once)
+        self.cl.create_subscription(Log, '/rosout', self.log.append, QoSProfile(
+            depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+            durability=DurabilityPolicy.TRANSIENT_LOCAL))
         self.ex = SingleThreadedExecutor(context=ctx)
         self.ex.add_node(self.cl)
         if node is not None:
