@@ -188,11 +188,13 @@ class FineStage:
             c.t_last = t[j - 1]
             if epoch:
                 self._epoch_done(c.t_last)
+            reason = None
             if j == end and hd is not None:
                 dt = t[hd] - (t[hd - 1] if hd > i else t_prev)
-                self._apply_heading(t[hd], dtheta[hd], dt)
+                reason = self._apply_heading(t[hd], dtheta[hd], dt)
                 C[-1] = self.mech.C_b_n
-            return [Rows(t[i:j], C, self.attitude_cov(), self.phase)], j, None
+            phase = self.phase if reason is None else FINE
+            return [Rows(t[i:j], C, self.attitude_cov(), phase)], j, reason
         return self._run_aided(t[i:], dtheta[i:], dv[i:], gnss, i)
 
     def _run_aided(self, t, dtheta, dv, gnss, offset):
@@ -267,8 +269,10 @@ class FineStage:
             if epoch:
                 self._epoch_done(t)
             if self.headings is not None and self.headings.due(t):
-                self._apply_heading(t, dtheta, dt)
+                reason = self._apply_heading(t, dtheta, dt)
                 C = eng.mech.C_b_n
+                if reason is not None:               # diverged: the stage ends at this row
+                    return one_row(t, C, eng.attitude_cov(), FINE, None), reason
         else:
             n_pred = eng.n_predict_only
             try:
