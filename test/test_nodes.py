@@ -357,6 +357,17 @@ def test_end_to_end_simulator_and_alignment_node_against_truth(ros_context, doma
     assert int(vals['imu_rejected_count']) == 0 and int(vals.get('imu_gap', 0)) == 0
     # no sample lost once the stream reached the node (discovery may take the first seconds)
     assert int(vals['imu_accepted']) == round(float(vals['elapsed_s']) * 100), vals
+    # the forecast (issue 23): the same time to aligned from coarse alignment on, and the
+    # outcome when it came (at rest it is exact to the model: align/expectation.py)
+    fc = [(_diag_values(m)['phase'], _diag_values(m)['expected_aligned_at_s']) for m in diag]
+    fc = [(ph, float(v)) for ph, v in fc if ph in ('coarse', 'fine')]
+    assert fc and max(v for _, v in fc) - min(v for _, v in fc) <= 3.0, fc
+    aligned = [float(_diag_values(m)['elapsed_s']) for m in diag
+               if _diag_values(m)['phase'] == 'aligned']
+    if aligned:
+        assert abs(aligned[0] - fc[-1][1]) <= 3.0, (aligned[0], fc[-1])
+    else:
+        assert fc[-1][1] > float(vals['elapsed_s']) - 1.0, (fc[-1], vals['elapsed_s'])
     ex.shutdown()
 
 

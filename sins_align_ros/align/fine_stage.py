@@ -33,6 +33,7 @@ import numpy as np
 from .aided import ANGLE_UNKNOWN_VAR, cap_angles
 from .consistency import ConsistencyMonitor
 from .convergence import ConvergenceMonitor
+from .expectation import SigmaHistory
 from .gnss_gate import FilterDiverged
 from .output import Rows, one_row
 
@@ -82,6 +83,10 @@ class FineStage:
         self.max_stages = cfg['max_stages']
         self.monitor = ConvergenceMonitor(cfg['stage_min_duration'])
         self.monitor.start(self.t0)
+        #: the misalignment variances at ~1 s spacing (the forecast's trend, :mod:`.expectation`)
+        self.history = SigmaHistory()
+        #: stamp of the first ``aligned`` epoch, or None
+        self.t_aligned = None
         #: innovation consistency of the GNSS-aided engines (:mod:`.consistency`)
         self.consistency = ConsistencyMonitor()
         #: the navigation solution goes out with the rows (``~/odom``)
@@ -154,7 +159,9 @@ class FineStage:
     def _epoch_done(self, t):
         """After a filter epoch at ``t``: the convergence check."""
         self._att_cov = None
-        sig_u = math.sqrt(max(self.attitude_cov()[2, 2], 0.0))
+        P = self.attitude_cov()
+        self.history.add(t, P.diagonal())
+        sig_u = math.sqrt(max(P[2, 2], 0.0))
         if not self.converged:
             if not self.monitor.converged(t, sig_u):
                 return
@@ -169,6 +176,8 @@ class FineStage:
         ready = not self._ready_reason()
         if self.phase == FINE and ready:
             self.phase = ALIGNED
+            if self.t_aligned is None:
+                self.t_aligned = t
         elif self.phase == ALIGNED and not ready:
             self.phase = FINE
 

@@ -26,6 +26,7 @@ import numpy as np
 from ..models.stationary import unobservable_variance
 from . import coarse_stage, motion, self_check
 from . import params as prm
+from .expectation import Forecaster
 from .factory import is_aided, make_engine, noise_spec
 from .fine_stage import ALIGNED, FINE, Clock, FineStage
 from .gnss_buffer import GnssBuffer
@@ -92,6 +93,8 @@ class AlignmentPipeline:
         #: an external heading set the coarse heading
         self.heading_measured = False
         self.report = ConditionReport()
+        #: the time and accuracy to expect (:mod:`.expectation`)
+        self.forecast = Forecaster()
         cfg = self.cfg
         w = cfg['preprocess_window'] + cfg['preprocess_window'] % 2
         self.pre = Preprocessor(cfg['preprocess_factor'], w, max(1, w // 4),
@@ -146,8 +149,12 @@ class AlignmentPipeline:
         return eng.nav_cov() if eng is not None and eng.navigates else None
 
     def status(self):
-        """Key figures for diagnostics (plain Python types)."""
+        """Key figures for diagnostics (plain Python types), with the forecast."""
         return pipeline_status(self)
+
+    def expectation(self):
+        """Return the time and 1-sigma to expect (:class:`~.expectation.Expectation`) now."""
+        return self.forecast.expect(self)
 
     def conditions(self):
         """Return the new degraded conditions: ``[(level, text)]``, 1 warn, 2 error."""

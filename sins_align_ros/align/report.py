@@ -8,6 +8,7 @@ warnings, so each rejection is reported once.
 import numpy as np
 
 from ..nav.frames import dcm_to_euler, euler_cov_from_phi_cov
+from . import expectation
 from ..units import DEG
 from .gnss_buffer import MAX_LEAD_S, QUEUE
 
@@ -42,6 +43,7 @@ def pipeline_status(p):
             f'{k}={v}' if isinstance(v, bool) else f'{k}={v:.4g}'
             for k, v in p.check.widened.items())
         s.update({f'self_check_{k}': float(v) for k, v in p.check.figures.items()})
+    s.update(expectation.figures(p.expectation(), None if fine is None else fine.mech.C_b_n))
     return s
 
 

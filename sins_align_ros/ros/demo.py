@@ -51,6 +51,9 @@ class _Watcher:
         self.att = {}
         self.n_att = 0
         self.status = None
+        #: (phase, expected_aligned_at_s) of each progress report; elapsed s at ``aligned``
+        self.expected = []
+        self.aligned_at = None
         self.phases = []
         self.node.create_subscription(Odometry, 'sim/truth', self._on_truth, qos)
         self.node.create_subscription(Imu, 'imu/data', self._on_att, 50)
@@ -88,7 +91,30 @@ class _Watcher:
                 if ph and (not self.phases or self.phases[-1] != ph):
                     self.phases.append(ph)
                     el = float(self.status.get('elapsed_s', 0))
+                    if ph == 'aligned' and self.aligned_at is None:
+                        self.aligned_at = el
                     print(f'  phase -> {ph:8s} (elapsed {el:7.1f} s)  {st.message}', flush=True)
+
+
+def _expectation(s):
+    """One line of the node's forecast (``expected_*`` on /diagnostics)."""
+    when = s.get('expected_aligned_at_s', 'unknown')
+    when = f'{float(when):.0f} s' if when not in ('never', 'unknown') else when
+    sig = ', '.join(f"{k[15:-4]} {float(s[k]) * 60:.2f}'" for k in (
+        'expected_sigma_roll_deg', 'expected_sigma_pitch_deg', 'expected_sigma_yaw_deg')
+        if k in s)
+    note = s.get('expectation_note', '')
+    return (f"aligned at {when} of data, 1-sigma then {sig or 'unknown'} "
+            f"({s.get('expectation_basis', '?')}){'; ' + note if note else ''}")
+
+
+def _report_expectation(w):
+    """Print the first forecast of the time to ``aligned`` against when it came."""
+    first = next((e for _, e in w.expected if e is not None), None)
+    got = w.aligned_at
+    first = first if first in (None, 'never', 'unknown') else f'{float(first):.0f} s'
+    print(f"Forecast of the time to aligned at the first report: {first} of data; actual: "
+          f"{'not reached in this run' if got is None else f'{got:.0f} s'}")
 
 
 def _report_navigation(w, sc):
@@ -215,6 +241,8 @@ def main(argv=None):
                                 ('sigma_roll_deg', 'sigma_pitch_deg', 'sigma_yaw_deg') if k in s)
                 print(f"  t = {float(s.get('elapsed_s', 0)):7.1f} s  phase {s.get('phase'):8s} "
                       f"1-sigma {sig or '-'}  IMU {s.get('imu_count')}", flush=True)
+                print(f'             expect: {_expectation(s)}', flush=True)
+                watcher.expected.append((s.get('phase'), s.get('expected_aligned_at_s')))
         # the node may still be working through its queue: wait until the attitudes stop
         # (1 s without one), at most 30 s
         end = time.monotonic() + 30.0
@@ -224,6 +252,7 @@ def main(argv=None):
             if watcher.n_att != n_att:
                 quiet_since, n_att = time.monotonic(), watcher.n_att
         code = _report(watcher, sc, args.duration - args.coarse, args.filter)
+        _report_expectation(watcher)
         if args.filter in NAV_FILTERS:
             _report_navigation(watcher, sc)
         return code
