@@ -43,6 +43,7 @@ import numpy as np
 from ..models.stationary import unobservable_variance
 from ..nav import earth
 from ..nav.frames import dcm_to_euler, euler_cov_from_phi_cov
+from ..units import DPH
 from . import coarse_stage
 from .convergence import MIN_SPAN_S, SHRINK, WINDOW_S
 from .factory import make_engine
@@ -110,8 +111,7 @@ def process_noise(noise, cfg):
     Angle random walk, plus the bias drift a Gauss-Markov instability of sigma ``s`` and
     correlation time ``tau`` adds (``2 s^2 / tau``, as the filters' drift states).
     """
-    drift = 2.0 * (cfg['gyro_bias_instability_dph'] * math.pi / 180.0 / 3600.0) ** 2 \
-        / cfg['gyro_bias_tau_s']
+    drift = 2.0 * (cfg['gyro_bias_instability_dph'] * DPH) ** 2 / cfg['gyro_bias_tau_s']
     return np.full(3, noise.gyro_arw ** 2 + drift)
 
 
