@@ -46,7 +46,8 @@ from ..nav.frames import dcm_to_euler, euler_cov_from_phi_cov
 from ..units import DPH
 from . import coarse_stage
 from .convergence import MIN_SPAN_S, SHRINK, WINDOW_S
-from .factory import make_engine
+from .factory import is_aided, make_engine
+from .motion import choose_filter, gnss_motion
 
 #: shadow filter epochs per second (still base)
 SHADOW_HZ = 1.0
@@ -239,18 +240,16 @@ class Forecaster:
         return e
 
 
-def _apply_rules(p, fine, t_abs, Pf, t_stage=None, converged=None, heading_known=True):
-    """Return the :class:`Expectation` of forecast ``Pf`` (M, 3) at stamps ``t_abs`` (M,)."""
+def _apply_rules(p, fine, t_abs, Pf):
+    """Return the :class:`Expectation` of ``fine``'s forecast ``Pf`` (M, 3) at ``t_abs`` (M,)."""
     cfg = p.cfg
     max_tilt = math.radians(cfg['aligned_max_tilt_sigma_deg'])
     max_head = math.radians(cfg['aligned_max_heading_sigma_deg'])
-    if fine is not None:
-        t_stage, converged = fine.monitor.t0, fine.converged
-        heading_known = fine.heading_known
+    heading_known = fine.heading_known
     if not heading_known:
         max_head = -1.0
-    i_al, i_tilt = first_aligned(t_abs, Pf, t_stage, converged, cfg['stage_min_duration'],
-                                 max_tilt, max_head)
+    i_al, i_tilt = first_aligned(t_abs, Pf, fine.monitor.t0, fine.converged,
+                                 cfg['stage_min_duration'], max_tilt, max_head)
     to_elapsed = t_abs - _t_first(p)
     sig = np.sqrt(np.maximum(Pf[-1 if i_al is None else i_al], 0.0))
     note = ''
@@ -290,8 +289,6 @@ def _t_first_aligned(fine, p):
 
 def _moving(p):
     """Tell whether GNSS shows the base moving before fine alignment (then ``auto`` aids)."""
-    from .factory import is_aided
-    from .motion import choose_filter, gnss_motion
     if p.cfg['fine_filter'] != 'auto':
         return is_aided(p.cfg['fine_filter'])
     t = p.t_last
@@ -358,8 +355,7 @@ def _heading_source(p):
 
 def _new_stage(p):
     """Return a fine stage as the pipeline would start it after coarse, and its start stamp."""
-    from .fine_stage import Clock, FineStage
-    from .motion import choose_filter
+    from .fine_stage import Clock, FineStage       # fine_stage imports this module
     cfg = dict(p.cfg)
     cfg['fine_filter'] = choose_filter(cfg, False)
     position = p.position if p.position is not None else p.gnss.position(cfg, False)[0]
