@@ -71,6 +71,15 @@ class CoarseWindow:
 #: fits of the moving-base coarse alignment that move the GNSS velocity to the IMU with
 #: the previous fit's attitude (a lever arm)
 ARM_PASSES = 2
+#: a gnss/vel message of the coarse window is an outlier when its difference from the
+#: IMU's velocity change leaves the window's smooth trend by more than this many times
+#: the larger of its sigma and the differences' robust scatter
+OUTLIER_SIGMAS = 5.0
+#: more outliers than this share of the window's messages: the differences are not
+#: noise plus a few glitches (an unconfigured lever arm, a wrong model), none is dropped
+MAX_OUTLIER_SHARE = 0.2
+#: fewest gnss/vel messages in the window for the outlier test
+MIN_EPOCHS_SCREENED = 8
 
 
 def coarse_sigma(noise, T, lat, moving, cap=30.0 * DEG):
@@ -176,9 +185,15 @@ def moving_base(window, cfg, noise, position, gnss, t_now, install=None):
     # a still base's noisy fix velocities for motion and turned the heading by 6 deg
     sigmas = gnss.sigmas_over(tt, cfg)
     V, v_sig, v_src = gnss.velocity_over(tt, *sigmas)
+    arm_b = None if install is None or install.no_arm else install.l_v
+    drop = frozenset()
+    if v_src == 'gnss_velocity':
+        drop = velocity_outliers(window, lat, h, gnss, V, v_sig, arm_b)
+        if drop:
+            V = gnss.velocity_over(tt, *sigmas, drop=drop)[0]
     C_arm = None
-    if V is not None and install is not None and not install.no_arm:
-        C_arm, V = _arm_to_imu(window, lat, h, gnss, sigmas, cfg, install, V)
+    if V is not None and arm_b is not None:
+        C_arm, V = _arm_to_imu(window, lat, h, gnss, sigmas, cfg, install, V, drop)
         reason = degenerate(C_arm)
         if reason:
             return None, info, reason
@@ -203,6 +218,8 @@ def moving_base(window, cfg, noise, position, gnss, t_now, install=None):
         warnings.append('the base moves and no GNSS velocity covers the coarse window: '
                         'tilt from specific force alone')
     v_end = np.zeros(3) if V is None else V[-1]
+    if drop:
+        v_end = _end_velocity(window, lat, h, gnss, C, V, drop)
     speed = float(np.hypot(v_end[0], v_end[1]))
     head_src = 'inertial_frame'
     if V is not None and speed >= cfg['track_min_speed_mps']:
@@ -220,12 +237,84 @@ def moving_base(window, cfg, noise, position, gnss, t_now, install=None):
         lon += (v_end[0] * (t_now - t_f) - arm_n[0]) / ((R_N + h) * math.cos(lat))
         h -= arm_n[2]
     info.update({'velocity_source': v_src, 'heading_source': head_src, 'speed_mps': speed,
-                 'steady_velocity': bool(steady)})
+                 'steady_velocity': bool(steady), 'gnss_velocity_outliers': len(drop)})
+    if drop:
+        warnings.append(f'{len(drop)} GNSS velocity message(s) of the coarse window left out: '
+                        f'the IMU contradicts them by more than {OUTLIER_SIGMAS:g} sigma')
     s_v = 0.5 if v_sig is None else max(2.0 * v_sig, 0.02)
     return CoarseResult(C, sigma, np.array([lat, lon, h]), v_end, s_v, info, warnings), info, None
 
 
-def _arm_to_imu(window, lat, h, gnss, sigmas, cfg, install, V):
+def velocity_outliers(window, lat, h, gnss, V, v_sig, arm_b=None):
+    """Stamps of the window's gnss/vel messages that the IMU contradicts (frozenset).
+
+    A first inertial-frame fit with every message (``V`` (N, 3) the GNSS velocity at
+    the window's samples) gives the attitude; with it the IMU's own velocity change
+    (:func:`~sins_align_ros.nav.coarse.velocity_change_n`, of the antenna with
+    ``arm_b``) is taken off each message. What is left is the start velocity plus a
+    slow drift (the fit's tilt and heading errors, the sensor biases) plus the GNSS
+    noise: a message whose difference leaves the smooth trend
+    (:func:`trend_outliers`) is an outlier. A receiver's glitch at the window's end
+    would otherwise become the fine filter's initial velocity, which the GNSS gate then
+    rejects epoch after epoch, or which turns the heading by tens of degrees (seed
+    004's severe sea with 5 % outliers, bench/results/integrity.md).
+    """
+    tt, dth, dvv, dts = window
+    tv, Vg = gnss.velocity_epochs(tt)
+    if len(tv) < MIN_EPOCHS_SCREENED:
+        return frozenset()
+    C = coarse.inertial_frame(dth, dvv, dts, lat, h, dv_n=V - V[0], arm_b=arm_b)
+    if degenerate(C):
+        return frozenset()
+    dv_imu = coarse.velocity_change_n(dth, dvv, dts, lat, h, C, arm_b)
+    k = np.clip(np.searchsorted(tt, tv), 0, len(tt) - 1)
+    out = trend_outliers(tv, Vg - dv_imu[k], v_sig)
+    if not out.any() or out.mean() > MAX_OUTLIER_SHARE:
+        return frozenset()
+    return frozenset(float(v) for v in tv[out])
+
+
+def trend_outliers(t, r, sigma, k=OUTLIER_SIGMAS, degree=2, passes=5):
+    """Rows of ``r`` (M, 3) off a smooth trend in ``t`` (M,): (M,) bool.
+
+    Per axis a polynomial of ``degree`` in ``t`` is fitted by least squares to the rows
+    not yet judged outliers; a row is an outlier when it leaves the fit by more than
+    ``k`` times the larger of ``sigma`` and the robust scatter (1.4826 x the median
+    absolute residual) of the kept rows, on any axis. Repeated until nothing changes.
+    """
+    x = (t - t.mean()) / max(float(np.ptp(t)), 1e-9)
+    A = np.vander(x, degree + 1)
+    out = np.zeros(len(t), dtype=bool)
+    for _ in range(passes):
+        coef = np.linalg.lstsq(A[~out], r[~out], rcond=None)[0]
+        res = r - A @ coef
+        scatter = 1.4826 * np.median(np.abs(res[~out]), axis=0)
+        new = np.any(np.abs(res) > k * np.maximum(sigma, scatter), axis=1)
+        if np.array_equal(new, out) or new.mean() > 0.5:
+            break
+        out = new
+    return out
+
+
+def _end_velocity(window, lat, h, gnss, C, V, drop):
+    """IMU velocity at the window's end (3,) when outliers were left out near it.
+
+    The last kept message at or before the end, carried to the end by the IMU's
+    velocity change (attitude ``C`` at the end): interpolating across a dropped message
+    at the window's end would hold a value up to a GNSS interval old (1.4 m/s of heave
+    change in 1 s on seed 004's sea). ``V`` (N, 3): the (kept, IMU's) velocity at the
+    window's samples.
+    """
+    tt, dth, dvv, dts = window
+    kept = [s for s in gnss.velocity_stamps(tt, drop) if s <= tt[-1]]
+    if not kept or max(drop) <= kept[-1]:
+        return V[-1]
+    k = int(min(np.searchsorted(tt, kept[-1]), len(tt) - 1))
+    dv_imu = coarse.velocity_change_n(dth, dvv, dts, lat, h, C)
+    return V[k] + dv_imu[-1] - dv_imu[k]
+
+
+def _arm_to_imu(window, lat, h, gnss, sigmas, cfg, install, V, drop=frozenset()):
     """Coarse attitude with a GNSS lever arm, and the IMU's velocity at stamps ``tt`` (N, 3).
 
     The fit (:func:`~sins_align_ros.nav.coarse.inertial_frame` with ``arm_b``) at the
@@ -237,7 +326,7 @@ def _arm_to_imu(window, lat, h, gnss, sigmas, cfg, install, V):
     (:data:`ARM_PASSES` times). Returns ``(C_b_n, V)``.
     """
     tt, dth, dvv, dts = window
-    stamps = gnss.velocity_stamps(tt)
+    stamps = gnss.velocity_stamps(tt, drop)
     e = np.unique(np.clip(np.searchsorted(tt, stamps - 1e-6), 0, len(tt) - 1))
     e = e[e >= len(tt) // 10]
     if len(e) < 3:
@@ -253,7 +342,7 @@ def _arm_to_imu(window, lat, h, gnss, sigmas, cfg, install, V):
         def to_imu(t_v, V_v, arm_n=arm_n):
             return V_v - np.column_stack([np.interp(t_v, tt, arm_n[:, i]) for i in range(3)])
 
-        V = gnss.velocity_over(tt, *sigmas, correct=to_imu)[0]
+        V = gnss.velocity_over(tt, *sigmas, correct=to_imu, drop=drop)[0]
         if math.hypot(V[-1, 0], V[-1, 1]) >= cfg['track_min_speed_mps']:
             eul = dcm_to_euler(C)
             eul[2] = math.atan2(V[-1, 1], V[-1, 0])

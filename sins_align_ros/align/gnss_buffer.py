@@ -178,7 +178,7 @@ class GnssBuffer:
         pos, vel = self.reported_over(tt[0] - 2.0, tt[-1] + 2.0)
         return gnss_sigma(cfg, 'gnss_vel_sigma_mps', vel), gnss_sigma(cfg, 'gnss_pos_sigma_m', pos)
 
-    def velocity_over(self, tt, vel_sigma, pos_sigma, correct=None):
+    def velocity_over(self, tt, vel_sigma, pos_sigma, correct=None, drop=()):
         """GNSS velocity at stamps ``tt`` (N, 3), its 1-sigma (m/s) and source; or (None, ...).
 
         From gnss/vel when at least two messages cover the window (sigma
@@ -186,9 +186,10 @@ class GnssBuffer:
         (sigma from ``pos_sigma``). ``correct(t, V) -> V``, if given, is applied to the
         velocities at their own stamps before they are interpolated to ``tt`` (the
         lever arm's velocity: it sways faster than the GNSS rate samples it well).
+        ``drop``: stamps of gnss/vel messages to leave out (outliers).
         """
         lo, hi = tt[0] - 2.0, tt[-1] + 2.0
-        vels = [(tv, v) for tv, v, _ in self.vels if lo <= tv <= hi]
+        vels = [(tv, v) for tv, v, _ in self.vels if lo <= tv <= hi and tv not in drop]
         if len(vels) >= 2 and vels[0][0] <= tt[0] + 2.0 and vels[-1][0] >= tt[-1] - 2.0:
             tv = np.array([a for a, _ in vels])
             V = np.array([b for _, b in vels])
@@ -219,9 +220,15 @@ class GnssBuffer:
         sig = pos_sigma * math.sqrt(12.0 / (2 * w + 1) / ((2 * w + 1) ** 2 - 1)) / dt_fix
         return out, sig, 'gnss_positions'
 
-    def velocity_stamps(self, tt):
+    def velocity_epochs(self, tt):
+        """Return the gnss/vel messages in ``tt``'s span: stamps (M,) and velocities (M, 3)."""
+        vels = [(tv, v) for tv, v, _ in self.vels if tt[0] <= tv <= tt[-1]]
+        return (np.array([a for a, _ in vels]),
+                np.array([b for _, b in vels], dtype=float).reshape(-1, 3))
+
+    def velocity_stamps(self, tt, drop=()):
         """Stamps (M,) in ``tt``'s span of what :meth:`velocity_over` reads: gnss/vel or fixes."""
-        vels = [v[0] for v in self.vels if tt[0] <= v[0] <= tt[-1]]
+        vels = [v[0] for v in self.vels if tt[0] <= v[0] <= tt[-1] and v[0] not in drop]
         if len(vels) >= 2:
             return np.array(vels)
         return np.array([f[0] for f in self.fixes if tt[0] <= f[0] <= tt[-1]])

@@ -127,19 +127,8 @@ def inertial_frame(dtheta, dv, dt, lat, h=0.0, dv_n=None, n_epochs=50, arm_b=Non
     C_bb0, V_b0 = velocity_integral_b0(dtheta, dv)
     if dv_n is not None and arm_b is not None and np.any(arm_b):
         V_b0 = V_b0 + arm_velocity_b0(C_bb0, dtheta, dt, arm_b)
-    # gravity integral in i0 (ENU at t0, fixed in inertial space): the up vector turns
-    # about the Earth axis u at the Earth rate: C_n(t)^i0 = exp(W t [u x])
-    g = earth.gravity(lat, h)
-    u = np.array([0.0, np.cos(lat), np.sin(lat)])
-    up = np.array([0.0, 0.0, 1.0])
-    a = earth.OMEGA_IE * t
-    # integral of Rodrigues(u, W tau) @ up from 0 to t, closed form
-    par = np.dot(u, up) * u
-    perp = up - par
-    cr = np.cross(u, up)
-    W = earth.OMEGA_IE
-    V_i0 = g * (np.outer(t, par) + np.outer(np.sin(a) / W, perp)
-                + np.outer((1.0 - np.cos(a)) / W, cr))
+    u, a = _earth_axis(lat), earth.OMEGA_IE * t
+    V_i0 = gravity_integral_i0(t, lat, h)
     if dv_n is not None:
         # velocity change expressed in i0: sum of C_n^i0 d(v_n) (small-rotation form)
         dvn = np.diff(np.vstack([np.zeros(3), dv_n]), axis=0)
@@ -156,6 +145,48 @@ def inertial_frame(dtheta, dv, dt, lat, h=0.0, dv_n=None, n_epochs=50, arm_b=Non
     C_i0_b0 = U @ D @ Vt                                    # V_b0 = C_i0_b0 @ V_i0
     C_n_i0_end = _rotations(u, a[-1:])[0]
     return orthonormalize(C_n_i0_end.T @ C_i0_b0.T @ C_bb0[-1])
+
+
+def _earth_axis(lat):
+    """Earth's rotation axis in ENU at latitude ``lat`` (rad), unit (3,)."""
+    return np.array([0.0, np.cos(lat), np.sin(lat)])
+
+
+def gravity_integral_i0(t, lat, h):
+    """Integral of gravity from 0 to each ``t`` (N,) s in the frame i0, (N, 3) m/s.
+
+    i0 is ENU at the window's start, fixed in inertial space: the up vector turns about
+    the Earth axis ``u`` at the Earth rate, ``C_n(t)^i0 = exp(W t [u x])``; closed form.
+    """
+    u, up, W = _earth_axis(lat), np.array([0.0, 0.0, 1.0]), earth.OMEGA_IE
+    a = W * t
+    par = np.dot(u, up) * u
+    return earth.gravity(lat, h) * (np.outer(t, par) + np.outer(np.sin(a) / W, up - par)
+                                    + np.outer((1.0 - np.cos(a)) / W, np.cross(u, up)))
+
+
+def velocity_change_n(dtheta, dv, dt, lat, h, C_b_n_end, arm_b=None):
+    """ENU velocity change since the window's start that the IMU implies (N, 3), m/s.
+
+    The inverse of :func:`inertial_frame`'s relation ``V_b0 = C_i0^b0 (G_i0 + dV_i0)``
+    for a known attitude ``C_b_n_end`` (3, 3) at the window's end: ``dV_i0 = C_b0^i0
+    V_b0 - G_i0``, turned back to ENU sample by sample. With ``arm_b`` (3,) m, body axes,
+    the change is the velocity of that point (a GNSS antenna), as :func:`inertial_frame`
+    takes it. Inputs as :func:`inertial_frame`'s.
+    """
+    n = len(dtheta)
+    dt = np.broadcast_to(np.asarray(dt, dtype=float), (n,))
+    t = np.cumsum(dt)
+    C_bb0, V_b0 = velocity_integral_b0(dtheta, dv)
+    if arm_b is not None and np.any(arm_b):
+        V_b0 = V_b0 + arm_velocity_b0(C_bb0, dtheta, dt, arm_b)
+    Rz = _rotations(_earth_axis(lat), earth.OMEGA_IE * t)     # C_n(t)^i0
+    # C_b0^i0 = C_n_end^i0 C_b_n_end C_b0^b_end
+    C_b0_i0 = Rz[-1] @ np.asarray(C_b_n_end, dtype=float) @ C_bb0[-1].T
+    G_i0 = gravity_integral_i0(t, lat, h)
+    dV_i0 = V_b0 @ C_b0_i0.T - G_i0
+    steps = np.diff(np.vstack([np.zeros(3), dV_i0]), axis=0)
+    return np.cumsum(np.einsum('kji,kj->ki', Rz, steps), axis=0)
 
 
 def _rotations(u, angles):
