@@ -32,6 +32,35 @@ def test_euler_dcm_quaternion_round_trips():
     assert fr.quat_to_dcm(q) == pytest.approx(fr.euler_to_dcm(e), abs=1e-12)
 
 
+def test_closed_forms_agree_with_scipy_rotation():
+    """The module's closed forms (no scipy at import: 0.16 s of every start) against
+    scipy's Rotation, an independent implementation, on one and on stacked inputs."""
+    from scipy.spatial.transform import Rotation
+    rng = np.random.default_rng(21)
+    e = rng.uniform([-np.pi, -1.5, -np.pi], [np.pi, 1.5, np.pi], size=(200, 3))
+    ref = Rotation.from_euler('xyz', e)
+    assert fr.euler_to_dcm(e) == pytest.approx(ref.as_matrix(), abs=1e-14)
+    assert fr.euler_to_dcm(e[0]) == pytest.approx(ref[0].as_matrix(), abs=1e-14)
+    assert fr.euler_to_quat(e) == pytest.approx(ref.as_quat(), abs=1e-14)
+    q = ref.as_quat() * rng.uniform(0.5, 2.0, (200, 1))     # any norm
+    assert fr.quat_to_dcm(q) == pytest.approx(ref.as_matrix(), abs=1e-14)
+    assert fr.quat_to_euler(q[3]) == pytest.approx(e[3], abs=1e-12)
+    for angle in (1e-12, 1e-7, 1e-3, 1.0, 3.14159):        # series, general, near pi
+        v = rng.normal(size=(50, 3))
+        v *= angle / np.linalg.norm(v, axis=1, keepdims=True)
+        C = Rotation.from_rotvec(v).as_matrix()
+        assert fr.rotvec_to_dcm(v) == pytest.approx(C, abs=1e-15)
+        assert fr.dcm_to_rotvec(C) == pytest.approx(v, abs=1e-12 * max(angle, 1e-3))
+        assert fr.dcm_to_rotvec(C[0]) == pytest.approx(v[0], abs=1e-12 * max(angle, 1e-3))
+    att = rng.uniform([-1.5, -np.pi, -np.pi], [1.5, np.pi, np.pi], size=(50, 3))
+    psins = Rotation.from_euler('ZXY', att[:, [2, 0, 1]]).as_matrix() @ fr.C_FLU_TO_RFU
+    assert fr.psins_att_to_dcm(att) == pytest.approx(psins, abs=1e-14)
+    # what is unknown stays unknown (scipy raises on a zero quaternion)
+    assert np.isnan(fr.quat_to_euler([0.0, 0.0, 0.0, 0.0])).all()
+    assert np.isnan(fr.quat_to_euler(np.full((2, 4), np.nan))).all()
+    assert np.isnan(fr.dcm_to_euler(np.full((3, 3), np.nan))).all()
+
+
 def test_navigation_heading_is_clockwise_from_north():
     assert fr.yaw_to_heading(0.0) == pytest.approx(np.pi / 2)          # east
     assert fr.yaw_to_heading(np.pi / 2) == pytest.approx(0.0)          # north

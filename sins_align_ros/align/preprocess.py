@@ -25,7 +25,6 @@ runs it over whole arrays.
 import math
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 
 def upsample_increments(t, inc, factor):
@@ -40,6 +39,9 @@ def upsample_increments(t, inc, factor):
     cum = np.vstack([np.zeros((1, inc.shape[1])), np.cumsum(inc[1:], axis=0)])
     frac = np.arange(1, factor + 1) / factor
     t_f = (t[:-1, None] + np.diff(t)[:, None] * frac[None, :]).ravel()
+    # imported here: scipy.interpolate is 0.1 s of every replay's start-up, and only an
+    # upsampling run needs it
+    from scipy.interpolate import CubicSpline
     c_f = CubicSpline(t, cum, axis=0)(t_f)
     c_f[factor - 1::factor] = cum[1:]                 # exact at the knots (no round-off)
     return t_f, np.diff(np.vstack([cum[:1], c_f]), axis=0)

@@ -13,12 +13,11 @@ import csv
 import numpy as np
 
 from ..nav.frames import yaw_to_heading
+from .fixed_text import format_table
 
 COLUMNS = ('t', 'qx', 'qy', 'qz', 'qw', 'roll_deg', 'pitch_deg', 'yaw_deg',
            'sigma_roll_deg', 'sigma_pitch_deg', 'sigma_yaw_deg', 'phase', 'heading_deg')
 NAV_COLUMNS = ('lat_deg', 'lon_deg', 'h_m', 've_mps', 'vn_mps', 'vu_mps')
-#: rows formatted at once
-_ROWS = 4096
 
 
 def write_csv(path, out, every=1):
@@ -37,22 +36,17 @@ def write_csv(path, out, every=1):
     if out.nav is not None:
         nav = out.nav[idx].copy()
         nav[:, :2] = np.degrees(nav[:, :2])
-    cols = [out.t[idx], *out.q[idx].T, *eul.T, *sig.T, np.asarray(out.phase, dtype=object)[idx],
-            head]
-    fmt = ['%.9f'] + ['%.12f'] * 4 + ['%.9f'] * 6 + ['%s', '%.9f']
+    cols = [out.t[idx], *out.q[idx].T, *eul.T, *sig.T, head]
+    decimals = [9] + [12] * 4 + [9] * 7
     if nav is not None:
         cols += [nav[:, 0], nav[:, 1], *nav[:, 2:].T]
-        fmt += ['%.10f', '%.10f'] + ['%.4f'] * 4
-    row = ','.join(fmt) + '\r\n'                    # as csv.writer wrote them
-    with open(path, 'w', newline='') as f:
-        f.write(','.join(COLUMNS + (NAV_COLUMNS if nav is not None else ())) + '\r\n')
-        # one %-formatting per chunk of rows: the per-row Python work of csv.writer was
-        # most of a 1200 s replay's output time
-        for k0 in range(0, len(idx), _ROWS):
-            values = np.empty((min(_ROWS, len(idx) - k0), len(cols)), dtype=object)
-            for j, c in enumerate(cols):
-                values[:, j] = c[k0:k0 + len(values)]
-            f.write((row * len(values)) % tuple(values.ravel().tolist()))
+        decimals += [10, 10] + [4] * 4
+    text = format_table(np.column_stack(cols), decimals, np.asarray(out.phase)[idx],
+                        text_col=COLUMNS.index('phase'))
+    with open(path, 'wb') as f:
+        f.write((','.join(COLUMNS + (NAV_COLUMNS if nav is not None else ())) + '\r\n')
+                .encode('ascii'))
+        f.write(text)
 
 
 def read_csv(path):

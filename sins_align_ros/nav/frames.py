@@ -26,7 +26,6 @@ Shapes: functions accept a single angle triple (3,) or a stack (N, 3); DCMs are
 import math
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..units import ARCMIN, ARCSEC, DEG  # noqa: F401 (re-exported)
 
@@ -62,14 +61,60 @@ def skew(v):
     return S
 
 
+def _rotation_x(a):
+    """``Rx(a)`` (..., 3, 3) of angles (...) rad."""
+    c, s = np.cos(a), np.sin(a)
+    o, z = np.ones_like(c), np.zeros_like(c)
+    return np.stack([np.stack([o, z, z], -1), np.stack([z, c, -s], -1),
+                     np.stack([z, s, c], -1)], -2)
+
+
+def _rotation_y(a):
+    """``Ry(a)`` (..., 3, 3) of angles (...) rad."""
+    c, s = np.cos(a), np.sin(a)
+    o, z = np.ones_like(c), np.zeros_like(c)
+    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1),
+                     np.stack([-s, z, c], -1)], -2)
+
+
+def _rotation_z(a):
+    """``Rz(a)`` (..., 3, 3) of angles (...) rad."""
+    c, s = np.cos(a), np.sin(a)
+    o, z = np.ones_like(c), np.zeros_like(c)
+    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1),
+                     np.stack([z, z, o], -1)], -2)
+
+
 def rotvec_to_dcm(phi):
-    """DCM ``exp([phi x])`` of a rotation vector ``phi`` (rad), shape (3,) -> (3, 3)."""
-    return Rotation.from_rotvec(phi).as_matrix()
+    """DCM ``exp([phi x])`` of a rotation vector ``phi`` (rad), (..., 3) -> (..., 3, 3).
+
+    Rodrigues: ``I + sin(a)/a [phi x] + (1 - cos a)/a^2 [phi x]^2``, ``a = |phi|``, with
+    the Taylor series of both factors below 1e-4 rad.
+    """
+    phi = np.asarray(phi, dtype=float)
+    a2 = np.sum(phi * phi, axis=-1)[..., None, None]
+    a = np.sqrt(a2)
+    small = a < 1e-4
+    with np.errstate(divide='ignore', invalid='ignore'):
+        k1 = np.where(small, 1.0 - a2 / 6.0, np.sin(a) / a)
+        k2 = np.where(small, 0.5 - a2 / 24.0, (1.0 - np.cos(a)) / a2)
+    S = skew(phi)
+    return np.eye(3) + k1 * S + k2 * (S @ S)
 
 
 def dcm_to_rotvec(C):
-    """Rotation vector of a DCM, (3, 3) -> (3,) (or stacked)."""
-    return Rotation.from_matrix(C).as_rotvec()
+    """Rotation vector (rad) of a DCM, (..., 3, 3) -> (..., 3); angle in [0, pi].
+
+    Through the quaternion (:func:`dcm_to_quat`, ``w >= 0``): ``phi = v 2 atan2(|v|, w) /
+    |v|``, the factor's series ``2 / w (1 - |v|^2 / (3 w^2))`` for ``|v| < 1e-6``.
+    """
+    q = dcm_to_quat(C)
+    v, w = q[..., :3], q[..., 3]
+    n = np.linalg.norm(v, axis=-1)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        k = np.where(n < 1e-6, 2.0 / w * (1.0 - n * n / (3.0 * w * w)),
+                     2.0 * np.arctan2(n, w) / n)
+    return v * k[..., None]
 
 
 def orthonormalize(C):
@@ -82,7 +127,7 @@ def orthonormalize(C):
 def euler_to_dcm(euler):
     """``C_b_n`` from REP-103 ``[roll, pitch, yaw]`` (rad); (3,) -> (3, 3), (N, 3) -> (N, 3, 3)."""
     euler = np.asarray(euler, dtype=float)
-    return Rotation.from_euler('xyz', euler).as_matrix()
+    return _rotation_z(euler[..., 2]) @ _rotation_y(euler[..., 1]) @ _rotation_x(euler[..., 0])
 
 
 def dcm_to_euler(C_b_n):
@@ -94,7 +139,8 @@ def dcm_to_euler(C_b_n):
     C = np.asarray(C_b_n, dtype=float)
     if C.ndim == 2:                      # scalar fast path (live node, one sample)
         return np.array([math.atan2(C[2, 1], C[2, 2]),
-                         -math.asin(min(1.0, max(-1.0, C[2, 0]))),
+                         -math.asin(C[2, 0] if not abs(C[2, 0]) > 1.0  # NaN stays NaN
+                                    else math.copysign(1.0, C[2, 0])),
                          math.atan2(C[1, 0], C[0, 0])])
     roll = np.arctan2(C[..., 2, 1], C[..., 2, 2])
     pitch = -np.arcsin(np.clip(C[..., 2, 0], -1.0, 1.0))
@@ -103,13 +149,25 @@ def dcm_to_euler(C_b_n):
 
 
 def euler_to_quat(euler):
-    """Quaternion ``(x, y, z, w)`` body -> ENU from REP-103 Euler angles (rad)."""
-    return Rotation.from_euler('xyz', np.asarray(euler, dtype=float)).as_quat()
+    """Quaternion ``(x, y, z, w)`` body -> ENU from REP-103 Euler angles (rad).
+
+    The product ``q_z(yaw) q_y(pitch) q_x(roll)`` of the elementary quaternions, in
+    closed form (the sign is the product's: ``w`` may be negative).
+    """
+    e = np.asarray(euler, dtype=float) * 0.5
+    cr, sr = np.cos(e[..., 0]), np.sin(e[..., 0])
+    cp, sp = np.cos(e[..., 1]), np.sin(e[..., 1])
+    cy, sy = np.cos(e[..., 2]), np.sin(e[..., 2])
+    return np.stack([sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
+                     cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy], axis=-1)
 
 
 def quat_to_euler(q):
-    """REP-103 Euler angles (rad) from quaternion ``(x, y, z, w)`` body -> ENU."""
-    return Rotation.from_quat(q).as_euler('xyz')
+    """REP-103 Euler angles (rad) from quaternion ``(x, y, z, w)`` body -> ENU, any norm.
+
+    ``dcm_to_euler(quat_to_dcm(q))``; NaN for a NaN or zero quaternion.
+    """
+    return dcm_to_euler(quat_to_dcm(q))
 
 
 def quat_to_yaw(q):
@@ -179,8 +237,20 @@ def _dcm_to_quat_one(c):
 
 
 def quat_to_dcm(q):
-    """``C_b_n`` of quaternion ``(x, y, z, w)``."""
-    return Rotation.from_quat(q).as_matrix()
+    """``C_b_n`` (..., 3, 3) of quaternion ``(x, y, z, w)`` (..., 4), normalised first.
+
+    NaN for a NaN or zero quaternion.
+    """
+    q = np.asarray(q, dtype=float)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    xx, yy, zz = x * x, y * y, z * z
+    xy, xz, yz, wx, wy, wz = x * y, x * z, y * z, w * x, w * y, w * z
+    return np.stack([
+        np.stack([1.0 - 2.0 * (yy + zz), 2.0 * (xy - wz), 2.0 * (xz + wy)], -1),
+        np.stack([2.0 * (xy + wz), 1.0 - 2.0 * (xx + zz), 2.0 * (yz - wx)], -1),
+        np.stack([2.0 * (xz - wy), 2.0 * (yz + wx), 1.0 - 2.0 * (xx + yy)], -1)], -2)
 
 
 def euler_rates_to_w_nb_b(euler, euler_rate):
@@ -237,16 +307,21 @@ def psins_att_to_dcm(att):
     PSINS defines ``C_rfu_enu = Rz(yaw) Rx(pitch) Ry(roll)``.
     """
     att = np.asarray(att, dtype=float)
-    C_rfu_enu = Rotation.from_euler('ZXY', np.stack(
-        [att[..., 2], att[..., 0], att[..., 1]], axis=-1)).as_matrix()
+    C_rfu_enu = _rotation_z(att[..., 2]) @ _rotation_x(att[..., 0]) @ _rotation_y(att[..., 1])
     return C_rfu_enu @ C_FLU_TO_RFU
 
 
 def dcm_to_psins_att(C_b_n):
-    """PSINS attitude ``[pitch, roll, yaw]`` (rad, RFU body) of an FLU -> ENU DCM."""
-    C_rfu_enu = np.asarray(C_b_n) @ C_RFU_TO_FLU
-    zxy = Rotation.from_matrix(C_rfu_enu).as_euler('ZXY')
-    return np.stack([zxy[..., 1], zxy[..., 2], zxy[..., 0]], axis=-1)
+    """PSINS attitude ``[pitch, roll, yaw]`` (rad, RFU body) of an FLU -> ENU DCM.
+
+    For ``C = Rz(y) Rx(p) Ry(r)``: ``p = asin(C21)``, ``r = atan2(-C20, C22)``,
+    ``y = atan2(-C01, C11)`` (PSINS ``m2att``).
+    """
+    C = np.asarray(C_b_n, dtype=float) @ C_RFU_TO_FLU
+    pitch = np.arcsin(np.clip(C[..., 2, 1], -1.0, 1.0))
+    roll = np.arctan2(-C[..., 2, 0], C[..., 2, 2])
+    yaw = np.arctan2(-C[..., 0, 1], C[..., 1, 1])
+    return np.stack([pitch, roll, yaw], axis=-1)
 
 
 def attitude_error(C_est, C_true):
@@ -257,7 +332,7 @@ def attitude_error(C_est, C_true):
     Shapes (3, 3) -> (3,), or stacked.
     """
     dC = np.asarray(C_true) @ np.swapaxes(np.asarray(C_est), -1, -2)
-    return Rotation.from_matrix(dC).as_rotvec()
+    return dcm_to_rotvec(dC)
 
 
 def euler_error(euler_est, euler_true):
