@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from sins_align_ros.align.gnss_input import GnssInput
-from sins_align_ros.align.imu_input import OK, RESET, SKIP, START, ImuInput
+from sins_align_ros.align.imu_input import OK, RATE_WINDOW, RESET, SKIP, START, ImuInput
 from sins_align_ros.align.moving import MovingBaseAlignment
 from sins_align_ros.align.pipeline import AlignmentPipeline
 from sins_align_ros.align.session import feed_arrays
@@ -207,18 +207,22 @@ def test_push_run_leaves_the_checker_as_push_does_sample_by_sample():
     t, w, f = s.imu['t'], s.imu['w'], s.imu['f']
     a, b = ImuInput(0.5, gyro_range=np.radians(300.0)), ImuInput(0.5, gyro_range=np.radians(300.0))
     one = [a.push(t[k], w[k], f[k]) for k in range(len(t))]
-    k, runs, got = 0, 0, []
+    k, runs, got = 0, [], []
     while k < len(t):
         n, dth, dv = b.push_run(t[k:], w[k:], f[k:])
         if n:
-            runs += 1
+            runs.append(n)
             got += [(OK, dth[i], dv[i]) for i in range(n)]
             k += n
         else:
             got.append(b.push(t[k], w[k], f[k]))
             k += 1
-    assert runs > 50 and a.counts == b.counts and a.t_last == b.t_last
+    # runs cross rate windows (the nominal rate re-estimated inside them) and the rate
+    # change (its notice) as push sample by sample does
+    assert len(runs) > 9 and max(runs) > 10 * RATE_WINDOW
+    assert a.counts == b.counts and a.t_last == b.t_last and a.counts['rate_change'] >= 1
     assert a.dt_nominal == b.dt_nominal and list(a._dts) == list(b._dts)
+    assert a.notices == b.notices
     assert [g[0] for g in got] == [o[0] for o in one]
     for g, o in zip(got, one):
         if o[0] == OK:

@@ -136,7 +136,7 @@ class IntervalSums:
         ``out``: :meth:`~sins_align_ros.nav.mechanization.Strapdown.run`'s record of them;
         ``dt`` (N,) their intervals.
         """
-        self.T = float(np.cumsum(np.r_[self.T, dt])[-1])
+        self.T = float(np.cumsum(np.concatenate(([self.T], dt)))[-1])
         self.dv_sum = np.cumsum(np.vstack([self.dv_sum, out['dv_sf']]), axis=0)[-1]
         self.v_sum = np.cumsum(np.vstack([self.v_sum, out['v_n'] * dt[:, None]]), axis=0)[-1]
         if self.attitude:
@@ -354,7 +354,8 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies):
         i = 0
         while i < n:
             w = dt[i:i + STRETCH]
-            over = np.flatnonzero(np.cumsum(np.r_[self.sums.T, w])[1:] >= MAX_PREDICT)
+            over = np.flatnonzero(np.cumsum(np.concatenate(([self.sums.T], w)))[1:]
+                                  >= MAX_PREDICT)
             j = i + (int(over[0]) + 1 if len(over) else len(w))
             dth, dvc = self._correct_imu(dtheta[i:j], dv[i:j], dt[i:j, None])
             out = self.mech.run(dth, dvc, dt[i:j], as_step=True)

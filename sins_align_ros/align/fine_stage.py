@@ -231,7 +231,7 @@ class FineStage:
                    if d is not None]
             due_at = min(due) if due else None
             end = n if due_at is None else due_at + 1
-            dt = np.diff(np.r_[c.t_last, t[k:end]])
+            dt = np.diff(t[k:end], prepend=c.t_last)
             blk = eng.step_block(dtheta[k:end], dv[k:end], dt)
             last = k + blk.end - 1
             Cs[k:last + 1] = blk.C

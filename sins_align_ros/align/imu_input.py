@@ -155,38 +155,42 @@ class ImuInput:
 
         ``t`` (N,), ``w_b``, ``f_b`` (N, 3). A sample ends the run when :meth:`push`
         would do anything else with it (the first sample of a clock, a bad value, a
-        saturated component, a stamp not increasing, a gap, a bridge) or when the
-        nominal rate is due to be re-estimated (every :data:`RATE_WINDOW` accepted
-        samples); the caller gives that sample to :meth:`push`. The state afterwards is
-        exactly as if :meth:`push` had taken each sample of the run.
+        saturated component, a stamp not increasing, a gap, a bridge); the caller gives
+        that sample to :meth:`push`. The nominal rate is re-estimated inside the run
+        where :meth:`push` would (every :data:`RATE_WINDOW` accepted samples), so the
+        state afterwards is exactly as if :meth:`push` had taken each sample of the run.
 
         Returns ``(n, dtheta, dv)``: the run's length (0: give ``t[0]`` to
         :meth:`push`) and its increments ((n, 3) each).
         """
         if self.t_last is None or self.dt_nominal is None or len(t) == 0:
             return 0, None, None
-        until = RATE_WINDOW - self.counts['accepted'] % RATE_WINDOW - 1
-        m = min(len(t), until)
-        if m <= 0:
-            return 0, None, None
-        t = np.asarray(t[:m], dtype=float)
-        w_b = np.asarray(w_b[:m], dtype=float)
-        f_b = np.asarray(f_b[:m], dtype=float)
+        t = np.asarray(t, dtype=float)
+        w_b = np.asarray(w_b, dtype=float)
+        f_b = np.asarray(f_b, dtype=float)
         dt = np.diff(t, prepend=self.t_last)
-        good = (np.isfinite(t) & np.isfinite(w_b).all(axis=1) & np.isfinite(f_b).all(axis=1)
-                & (np.abs(w_b).max(axis=1) < 0.999 * self.gyro_range)
-                & (np.abs(f_b).max(axis=1) < 0.999 * self.accel_range)
-                & (dt > 0.0) & (dt <= self.max_gap) & ~(dt > 1.5 * self.dt_nominal))
-        n = m if good.all() else int(np.argmin(good))
-        if n == 0:
+        plain = (np.isfinite(t) & np.isfinite(w_b).all(axis=1) & np.isfinite(f_b).all(axis=1)
+                 & (np.abs(w_b).max(axis=1) < 0.999 * self.gyro_range)
+                 & (np.abs(f_b).max(axis=1) < 0.999 * self.accel_range)
+                 & (dt > 0.0) & (dt <= self.max_gap))
+        n = len(t) if plain.all() else int(np.argmin(plain))
+        k = 0
+        while k < n:               # one stretch per rate window: the bridge test's nominal
+            end = min(n, k + RATE_WINDOW - self.counts['accepted'] % RATE_WINDOW)
+            bridges = np.flatnonzero(dt[k:end] > 1.5 * self.dt_nominal)
+            stop = k + int(bridges[0]) if len(bridges) else end
+            self.counts['accepted'] += stop - k
+            self._dts.extend(dt[k:stop].tolist())
+            k = stop
+            if stop < end:
+                break
+            self._renew_rate()
+        if k == 0:
             return 0, None, None
-        dt = dt[:n]
-        self.t_last = float(t[n - 1])
-        self._wf_prev = (w_b[n - 1].copy(), f_b[n - 1].copy())
-        self.counts['accepted'] += n
-        self._dts.extend(dt.tolist())
+        self.t_last = float(t[k - 1])
+        self._wf_prev = (w_b[k - 1].copy(), f_b[k - 1].copy())
         self.bridge = None
-        return n, w_b[:n] * dt[:, None], f_b[:n] * dt[:, None]
+        return k, w_b[:k] * dt[:k, None], f_b[:k] * dt[:k, None]
 
     def _reset(self, key, reason):
         self.counts[key] += 1
@@ -220,9 +224,14 @@ class ImuInput:
                                             f't={self.t_last:.3f}: interval of {dt * 1e3:.1f} ms '
                                             'bridged'))
         self._dts.append(dt)
+        self._renew_rate()
+        return bridged
+
+    def _renew_rate(self):
+        """Re-estimate the nominal interval when a rate window has just filled."""
         if len(self._dts) < RATE_WINDOW or self.counts['accepted'] % RATE_WINDOW:
-            return bridged
-        med = float(np.median(self._dts))
+            return
+        nom, med = self.dt_nominal, float(np.median(self._dts))
         if nom is None:
             self.dt_nominal = med
         elif abs(med / nom - 1.0) > 0.2:
@@ -230,7 +239,6 @@ class ImuInput:
             self.notices.append(('rate_change', f'IMU rate changed from {1.0 / nom:.1f} to '
                                                 f'{1.0 / med:.1f} Hz'))
             self.dt_nominal = med
-        return bridged
 
     @property
     def rejected(self):

@@ -34,12 +34,19 @@ class Output:
 
     @staticmethod
     def concat(parts):
-        """Join several outputs in time order."""
-        parts = [p for p in parts if len(p.t)]
+        """Join several outputs (or :class:`DeferredOutput`) in time order.
+
+        Deferred parts stay deferred: the result is a :class:`DeferredOutput` over all
+        the parts' rows, converted in one pass when first used.
+        """
+        parts = [p for p in parts if len(p)]
         if not parts:
             return Output.empty()
         if len(parts) == 1:
             return parts[0]
+        if any(isinstance(p, DeferredOutput) for p in parts):
+            return DeferredOutput([r for p in parts
+                                   for r in (p.parts if isinstance(p, DeferredOutput) else [p])])
         out = Output(*(np.concatenate([getattr(p, f) for p in parts])
                        for f in ('t', 'q', 'euler', 'sigma', 'P_phi', 'phase')))
         out.nav = concat_nav(parts)
@@ -67,7 +74,7 @@ class Rows:
         self.t, self.C, self.P_phi, self.phase, self.nav = t, C, P_phi, phase, nav
 
     def output(self):
-        return assemble([self])
+        return convert([self])
 
 
 def concat_nav(parts):
@@ -86,7 +93,43 @@ def one_row(t, C, P, phase, nav):
                   np.array([phase], dtype=object), nav)
 
 
+class DeferredOutput:
+    """The :class:`Output` of a list of :class:`Output` and :class:`Rows` parts, made when used.
+
+    Any :class:`Output` attribute (``t``, ``q``, ``phase``, ...) converts the parts
+    (:func:`convert`) once and is read from the result; ``len`` and
+    :meth:`Output.concat` need no conversion, so a replay that joins thousands of
+    blocks' rows converts its fine rows in one vectorised pass instead of one per block.
+    The parts must not change afterwards (the pipeline's rows are fresh arrays).
+    """
+
+    __slots__ = ('parts', '_out')
+
+    def __init__(self, parts):
+        self.parts, self._out = parts, None
+
+    def __len__(self):
+        return sum(len(p.t) for p in self.parts)
+
+    def output(self):
+        """Return the converted :class:`Output` (converting the parts the first time)."""
+        if self._out is None:
+            self._out = convert(self.parts)
+            self.parts = [self._out]
+        return self._out
+
+    def __getattr__(self, name):
+        if name.startswith('__') or name in DeferredOutput.__slots__:
+            raise AttributeError(name)        # unpickling, copying: no conversion
+        return getattr(self.output(), name)
+
+
 def assemble(parts):
+    """Return the output of ``parts`` (:class:`Output` and :class:`Rows`), converted when used."""
+    return DeferredOutput(list(parts))
+
+
+def convert(parts):
     """Convert runs of fine-phase :class:`Rows` in one vectorised pass; join everything."""
     done, run = [], []
 

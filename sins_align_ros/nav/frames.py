@@ -190,28 +190,36 @@ def dcm_to_quat(C_b_n):
     C = np.asarray(C_b_n, dtype=float)
     if C.ndim == 2:
         return _dcm_to_quat_one(C.ravel().tolist())
-    tr = C[..., 0, 0] + C[..., 1, 1] + C[..., 2, 2]
-    cand = np.stack([tr, C[..., 0, 0], C[..., 1, 1], C[..., 2, 2]], axis=-1)
-    k = np.argmax(cand, axis=-1)
+    shape = C.shape[:-2]
+    C = C.reshape(-1, 3, 3)
+    tr = C[:, 0, 0] + C[:, 1, 1] + C[:, 2, 2]
+    k = np.argmax(np.stack([tr, C[:, 0, 0], C[:, 1, 1], C[:, 2, 2]], axis=-1), axis=-1)
     with np.errstate(divide='ignore', invalid='ignore'):
-        q = np.empty(C.shape[:-2] + (4,))
-        # case w largest
+        # w largest (the common case) for every row, then the rows of the other cases
         s0 = np.sqrt(np.maximum(1.0 + tr, 0.0)) * 2.0
-        q0 = np.stack([(C[..., 2, 1] - C[..., 1, 2]) / s0, (C[..., 0, 2] - C[..., 2, 0]) / s0,
-                       (C[..., 1, 0] - C[..., 0, 1]) / s0, 0.25 * s0], axis=-1)
-        s1 = np.sqrt(np.maximum(1.0 + C[..., 0, 0] - C[..., 1, 1] - C[..., 2, 2], 0.0)) * 2.0
-        q1 = np.stack([0.25 * s1, (C[..., 0, 1] + C[..., 1, 0]) / s1,
-                       (C[..., 0, 2] + C[..., 2, 0]) / s1, (C[..., 2, 1] - C[..., 1, 2]) / s1], -1)
-        s2 = np.sqrt(np.maximum(1.0 - C[..., 0, 0] + C[..., 1, 1] - C[..., 2, 2], 0.0)) * 2.0
-        q2 = np.stack([(C[..., 0, 1] + C[..., 1, 0]) / s2, 0.25 * s2,
-                       (C[..., 1, 2] + C[..., 2, 1]) / s2, (C[..., 0, 2] - C[..., 2, 0]) / s2], -1)
-        s3 = np.sqrt(np.maximum(1.0 - C[..., 0, 0] - C[..., 1, 1] + C[..., 2, 2], 0.0)) * 2.0
-        q3 = np.stack([(C[..., 0, 2] + C[..., 2, 0]) / s3, (C[..., 1, 2] + C[..., 2, 1]) / s3,
-                       0.25 * s3, (C[..., 1, 0] - C[..., 0, 1]) / s3], -1)
-        for i, qi in enumerate((q0, q1, q2, q3)):
-            q = np.where((k == i)[..., None], qi, q)
+        q = np.stack([(C[:, 2, 1] - C[:, 1, 2]) / s0, (C[:, 0, 2] - C[:, 2, 0]) / s0,
+                      (C[:, 1, 0] - C[:, 0, 1]) / s0, 0.25 * s0], axis=-1)
+        for case in range(1, 4):                  # x, y or z largest: those rows only
+            rows = np.flatnonzero(k == case)
+            if len(rows):
+                q[rows] = _shepperd(C[rows], case)
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    return np.where(q[..., 3:4] < 0.0, -q, q)
+    return np.where(q[:, 3:4] < 0.0, -q, q).reshape(shape + (4,))
+
+
+def _shepperd(C, case):
+    """Shepperd's quaternion (M, 4) of DCMs (M, 3, 3) whose x (1), y (2) or z (3) is largest."""
+    if case == 1:
+        s = np.sqrt(np.maximum(1.0 + C[:, 0, 0] - C[:, 1, 1] - C[:, 2, 2], 0.0)) * 2.0
+        return np.stack([0.25 * s, (C[:, 0, 1] + C[:, 1, 0]) / s,
+                         (C[:, 0, 2] + C[:, 2, 0]) / s, (C[:, 2, 1] - C[:, 1, 2]) / s], -1)
+    if case == 2:
+        s = np.sqrt(np.maximum(1.0 - C[:, 0, 0] + C[:, 1, 1] - C[:, 2, 2], 0.0)) * 2.0
+        return np.stack([(C[:, 0, 1] + C[:, 1, 0]) / s, 0.25 * s,
+                         (C[:, 1, 2] + C[:, 2, 1]) / s, (C[:, 0, 2] - C[:, 2, 0]) / s], -1)
+    s = np.sqrt(np.maximum(1.0 - C[:, 0, 0] - C[:, 1, 1] + C[:, 2, 2], 0.0)) * 2.0
+    return np.stack([(C[:, 0, 2] + C[:, 2, 0]) / s, (C[:, 1, 2] + C[:, 2, 1]) / s,
+                     0.25 * s, (C[:, 1, 0] - C[:, 0, 1]) / s], -1)
 
 
 def _dcm_to_quat_one(c):
