@@ -10,7 +10,8 @@ import pytest
 from sins_align_ros.filters import kf
 from sins_align_ros.filters.adaptive import SageHusa, StrongTracking
 from sins_align_ros.filters.cubature import (chol_lower, ckf_predict, ckf_update,
-                                             cubature_points, srckf_predict, srckf_update, tria)
+                                             cubature_points, srckf_predict, srckf_update, tria,
+                                             tria_lapack)
 from sins_align_ros.filters.ukf import ukf_predict, ukf_update
 
 DT = 0.1
@@ -52,6 +53,16 @@ def test_tria_and_cubature_points():
     assert S @ S.T == pytest.approx(A @ A.T)
     xi = cubature_points(3)
     assert xi.shape == (3, 6) and np.allclose(xi @ xi.T / 6, np.eye(3))
+
+
+@pytest.mark.parametrize('n,k', [(10, 30), (13, 39), (2, 22), (13, 13)])
+def test_tria_compiled_householder_equals_lapack_qr(n, k):
+    """The compiled Tria (issue 22) against LAPACK's, rows of very different scales."""
+    rng = np.random.default_rng(24)
+    A = rng.normal(size=(n, k)) * 10.0 ** rng.integers(-6, 2, (n, 1))
+    S, ref = tria(A), tria_lapack(A)
+    assert np.array_equal(S, np.tril(S)) and np.all(np.diag(S) >= 0)
+    assert np.abs(S - ref).max() <= 1e-14 * np.abs(ref).max()
 
 
 def test_ckf_matches_filterpy_to_round_off():

@@ -5,6 +5,7 @@ import pytest
 from scipy.linalg import expm
 
 from sins_align_ros.filters import kf
+from sins_align_ros.models import large_azimuth as la
 from sins_align_ros.models.stationary import StationaryModel, limits
 from sins_align_ros.nav import earth
 from sins_align_ros.nav.frames import attitude_error, euler_to_dcm, rotvec_to_dcm
@@ -110,7 +111,6 @@ def test_limits():
                                                   ('underway', 30.0)])
 def test_large_azimuth_model_predicts_the_mechanization_errors(case, heading_err_deg):
     """Seed 000 eq. 1-4: 60 s of propagation against the full mechanization, large heading."""
-    from sins_align_ros.models import large_azimuth as la
     from sins_align_ros.nav.mechanization import Strapdown
     from sins_align_ros.sim.presets import SEED000_SWAY
     traj = {'static': Trajectory(45.78, 126.67, 0.0, heading_deg=45.0),
@@ -139,3 +139,19 @@ def test_large_azimuth_model_predicts_the_mechanization_errors(case, heading_err
     assert x[2:4] == pytest.approx(dp, rel=0.01, abs=0.05)
     assert x[4:7] == pytest.approx(phi, abs=2e-5)
     assert np.abs(dv).max() > 0.3                      # the errors are large: a real check
+
+
+@pytest.mark.parametrize('n', [10, 13])
+def test_large_azimuth_compiled_transition_equals_the_numpy_reference(n):
+    """The compiled RK4 of the cubature points (issue 22) against the numpy one."""
+    rng = np.random.default_rng(23)
+    scale = np.array([0.5, 0.5, 10, 10, 0.01, 0.01, 2.5, 1e-6, 1e-6, 1e-6, 1e-3, 1e-3, 1e-3])
+    X = rng.normal(size=(n, 2 * n)) * scale[:n, None]
+    f_n, v_n = np.array([0.3, -0.2, 9.8]), np.array([5.0, 3.0, 0.1])
+    C = np.asfortranarray(euler_to_dcm([0.1, 0.05, 0.7]))           # any memory layout
+    for sub in (1, 3):
+        ref = la.propagate_reference(X, f_n, v_n, 0.8, 10.0, 1.0, sub, C)
+        assert la.propagate(X, f_n, v_n, 0.8, 10.0, 1.0, sub, C) == pytest.approx(
+            ref, rel=1e-13, abs=1e-15)
+        assert la.propagate(X[:, 3], f_n, v_n, 0.8, 10.0, 1.0, sub, C) == pytest.approx(
+            ref[:, 3], rel=1e-13, abs=1e-15)

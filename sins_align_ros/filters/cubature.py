@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import cholesky, solve_triangular
 
+from ..nav import kernels
+
 
 def cubature_points(n):
     """Return the unit cubature points ``sqrt(n) [I, -I]`` (seed 000 eq. 22), (n, 2n)."""
@@ -20,7 +22,63 @@ def cubature_points(n):
 
 
 def tria(A):
-    """Lower-triangular ``S`` with ``S S^T = A A^T`` by QR of ``A^T`` (seed 000 "Tria")."""
+    """Lower-triangular ``S`` with ``S S^T = A A^T`` by QR of ``A^T`` (seed 000 "Tria").
+
+    ``A`` (n, k): compiled Householder triangularisation (:func:`_tria_householder`)
+    for k >= n when the kernels are; LAPACK's QR otherwise. Both give the unique factor
+    with a non-negative diagonal, equal to round-off (test_filters).
+    """
+    A = np.asarray(A, dtype=float)
+    if kernels.COMPILED and A.shape[1] >= A.shape[0]:
+        S = np.empty((A.shape[0], A.shape[0]))
+        _tria_householder(np.ascontiguousarray(A), S)
+        return S
+    return tria_lapack(A)
+
+
+@kernels.jit
+def _tria_householder(A, S):
+    """Write into ``S`` (n, n) the lower factor of ``A`` (n, k >= n): Householder on ``A^T``.
+
+    Reflections zero the columns of ``R = A^T`` (k, n) below the diagonal one at a time;
+    ``S = R[:n].T`` with each column's sign made non-negative (``S S^T = A A^T``).
+    """
+    n, k = A.shape
+    R = A.T.copy()
+    v = np.empty(k)
+    for j in range(n):
+        norm2 = 0.0
+        for i in range(j, k):
+            norm2 += R[i, j] * R[i, j]
+        if norm2 == 0.0:
+            continue
+        alpha = -np.sqrt(norm2) if R[j, j] >= 0.0 else np.sqrt(norm2)
+        for i in range(j, k):
+            v[i] = R[i, j]
+        v[j] -= alpha
+        vv = norm2 - R[j, j] * R[j, j] + v[j] * v[j]
+        if vv == 0.0:
+            continue
+        for c in range(j, n):
+            dot = 0.0
+            for i in range(j, k):
+                dot += v[i] * R[i, c]
+            f = 2.0 * dot / vv
+            for i in range(j, k):
+                R[i, c] -= f * v[i]
+    for r in range(n):
+        sign = -1.0 if R[r, r] < 0.0 else 1.0
+        for c in range(n):
+            S[c, r] = sign * R[r, c] if c >= r else 0.0
+
+
+@kernels.warms_up
+def _first_calls():
+    _tria_householder(np.zeros((2, 4)), np.empty((2, 2)))
+
+
+def tria_lapack(A):
+    """:func:`tria` by LAPACK's QR (any shape of ``A``)."""
     r = np.linalg.qr(A.T, mode='r')
     S = r.T
     # fix the signs so the diagonal is non-negative (unique factor)

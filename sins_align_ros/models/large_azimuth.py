@@ -45,7 +45,7 @@ filter takes the difference for heading (bench/results/moving_base_integrity.md)
 """
 import numpy as np
 
-from ..nav import earth
+from ..nav import earth, kernels
 
 N_STATES = 10
 #: states with the accelerometer bias (module docstring)
@@ -115,8 +115,96 @@ def propagate(x, f_n, v_n, lat, h, dt, substeps=1, C_b_n=None):
     """Discrete transition ``f(x)`` over ``dt`` by classical Runge-Kutta (seed 000 eq. 6).
 
     ``x`` (10,) or (13,), or a batch (10 or 13, N) of column states; ``C_b_n`` the
-    computed attitude over ``dt`` (13 states, :func:`derivative`).
+    computed attitude over ``dt`` (13 states, :func:`derivative`). Compiled
+    (:func:`_rk4_columns`) when the kernels are; :func:`propagate_reference` otherwise,
+    and a test keeps the two equal to round-off.
     """
+    if not kernels.COMPILED:
+        return propagate_reference(x, f_n, v_n, lat, h, dt, substeps, C_b_n)
+    x = np.asarray(x, dtype=float)
+    X = np.ascontiguousarray(x.reshape(len(x), -1))
+    R_M, R_N = earth.radii(lat)
+    w_ie = earth.w_ie_n(lat)
+    w_in = w_ie + earth.w_en_n(lat, h, v_n)
+    C = np.zeros((3, 3)) if C_b_n is None else np.ascontiguousarray(C_b_n, dtype=float)
+    terms = np.array([R_M + h, R_N + h, np.sin(lat), np.cos(lat), np.tan(lat),
+                      *(2.0 * w_ie + (w_in - w_ie)), *w_in, *f_n, *v_n], dtype=float)
+    out = np.empty_like(X)
+    _rk4_columns(X, terms, C, float(dt), int(substeps), out)
+    return out.reshape(x.shape)
+
+
+@kernels.jit
+def _derivative_column(x, k, terms, C):
+    """:func:`derivative` of one state ``x`` (n,) into ``k`` (n,), scalar arithmetic.
+
+    ``terms``: ``R_M + h, R_N + h, sin L, cos L, tan L, a (3), w_in (3), f_n (3), v_n (3)``
+    with ``a = 2 w_ie + w_en`` (:func:`propagate` builds them).
+    """
+    Rm, Rn, sl, cl, tl = terms[0], terms[1], terms[2], terms[3], terms[4]
+    a2 = terms[7]
+    wE, wN, wU = terms[8], terms[9], terms[10]
+    fE, fN, fU = terms[11], terms[12], terms[13]
+    vE, vN, vU = terms[14], terms[15], terms[16]
+    dvE, dvN, dpN = x[0], x[1], x[3]
+    pe, pn, pu = x[4], x[5], x[6]
+    dlat = dpN / Rm
+    b0 = -dvN / Rm
+    b1 = -2.0 * earth.OMEGA_IE * sl * dlat + dvE / Rn
+    b2 = 2.0 * earth.OMEGA_IE * cl * dlat + dvE * tl / Rn + vE * dlat / (Rn * cl ** 2)
+    c, s = np.cos(pu), np.sin(pu)
+    cm1 = c - 1.0
+    k[0] = cm1 * fE + s * fN - pn * fU + a2 * dvN - (b1 * vU - b2 * vN)
+    k[1] = -s * fE + cm1 * fN + pe * fU - a2 * dvE - (b2 * vE - b0 * vU)
+    k[2] = dvE
+    k[3] = dvN
+    dwie = earth.OMEGA_IE * dlat
+    k[4] = -(cm1 * wE + s * wN - pn * wU) + b0 - x[7]
+    k[5] = -(-s * wE + cm1 * wN + pe * wU) - dwie * sl + dvE / Rn - x[8]
+    k[6] = (-((pn * c + pe * s) * wE + (pn * s - pe * c) * wN) + dwie * cl
+            + dvE * tl / Rn + vE * dlat / (Rn * cl ** 2) - x[9])
+    for i in range(7, len(x)):
+        k[i] = 0.0
+    if len(x) == N_STATES_ACCEL:
+        k[0] += C[0, 0] * x[10] + C[0, 1] * x[11] + C[0, 2] * x[12]
+        k[1] += C[1, 0] * x[10] + C[1, 1] * x[11] + C[1, 2] * x[12]
+
+
+@kernels.jit
+def _rk4_columns(X, terms, C, dt, substeps, out):
+    """:func:`propagate_reference` of every column of ``X`` (n, N) into ``out`` (n, N)."""
+    n, m = X.shape
+    step = dt / substeps
+    x, y = np.empty(n), np.empty(n)
+    k1, k2, k3, k4 = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    for j in range(m):
+        for i in range(n):
+            x[i] = X[i, j]
+        for _ in range(substeps):
+            _derivative_column(x, k1, terms, C)
+            for i in range(n):
+                y[i] = x[i] + 0.5 * step * k1[i]
+            _derivative_column(y, k2, terms, C)
+            for i in range(n):
+                y[i] = x[i] + 0.5 * step * k2[i]
+            _derivative_column(y, k3, terms, C)
+            for i in range(n):
+                y[i] = x[i] + step * k3[i]
+            _derivative_column(y, k4, terms, C)
+            for i in range(n):
+                x[i] = x[i] + step / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+        for i in range(n):
+            out[i, j] = x[i]
+
+
+@kernels.warms_up
+def _first_calls():
+    for n in (N_STATES, N_STATES_ACCEL):
+        propagate(np.zeros((n, 2)), np.zeros(3), np.zeros(3), 0.5, 0.0, 1.0)
+
+
+def propagate_reference(x, f_n, v_n, lat, h, dt, substeps=1, C_b_n=None):
+    """:func:`propagate` in numpy on the whole batch, :func:`derivative` as written."""
     step = dt / substeps
     args = (f_n, v_n, lat, h, C_b_n)
     for _ in range(substeps):

@@ -28,10 +28,24 @@ except ImportError:                      # pragma: no cover
 COMPILED = numba is not None and os.environ.get('SINS_ALIGN_NO_JIT', '') != '1'
 
 
+#: every kernel compiled through :func:`jit` (this module's and the models'), in order
+DISPATCHERS = []
+#: first calls registered by other modules' kernels (:func:`warms_up`)
+_WARM_UPS = []
+
+
 def jit(func):
     """Compile ``func`` with numba (cached on disk) when :data:`COMPILED`, else return it."""
     if COMPILED:
-        return numba.njit(cache=True, nogil=True)(func)
+        dispatcher = numba.njit(cache=True, nogil=True)(func)
+        DISPATCHERS.append(dispatcher)
+        return dispatcher
+    return func
+
+
+def warms_up(func):
+    """Register ``func()`` (a module's kernels' first calls) with :func:`warm_up`."""
+    _WARM_UPS.append(func)
     return func
 
 
@@ -246,7 +260,8 @@ def warm_up():
 
     A live node calls this before it subscribes: the first use otherwise compiles in the
     middle of the data (the coarse window's end), seconds during which messages queue up
-    and can be dropped.
+    and can be dropped. The kernels of other modules run the first calls they registered
+    with :func:`warms_up` (modules imported by then).
     """
     import time
     t0 = time.perf_counter()
@@ -260,4 +275,6 @@ def warm_up():
                       np.array([0.5, 0.0, 0.0]), np.zeros(3), np.zeros(3), 0, z, z,
                       np.full(2, 0.01), True, True, True, False, cached, np.full(8, np.nan),
                       np.empty((2, 3, 3)), np.empty((2, 3)), np.empty((2, 3)), np.empty((2, 3)))
+    for first_calls in _WARM_UPS:
+        first_calls()
     return time.perf_counter() - t0
