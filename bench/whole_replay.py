@@ -23,6 +23,7 @@ run of each (numba caches filled). Reports the seconds, x real time, and pyins /
 Usage: python bench/whole_replay.py [--repeats 3] [--filters asckf,kf] [--out FILE]
 """
 import argparse
+import json
 import os
 import statistics
 import subprocess
@@ -70,6 +71,43 @@ def ours(bag, params, out_csv, root=ROOT):
     t0 = time.perf_counter()
     subprocess.run(cmd, check=True, env=env, cwd=str(root))
     return time.perf_counter() - t0
+
+
+STAGES = """
+import json, sys, time
+t0 = time.perf_counter()
+sys.path.insert(0, {root!r})
+from sins_align_ros.cli import replay as R
+from sins_align_ros.nav import kernels
+t1 = time.perf_counter()
+kernels.warm_up()
+t2 = time.perf_counter()
+args = R._parser().parse_args([{bag!r}, '--params', {params!r}, '--out', {csv!r}, '--quiet'])
+values = R.load_parameters(args.params, args.set, lambda m: None)
+R.read_bag({bag!r}, args.imu_topic, args.fix_topic, truth_topic=None, vel_topic=args.vel_topic)
+t3 = time.perf_counter()
+out, pipe, _ = R.replay_bag({bag!r}, values, args, lambda m: None, with_truth=False)
+t4 = time.perf_counter()
+R.write_csv({csv!r}, out)
+t5 = time.perf_counter()
+print(json.dumps({{'imports': t1 - t0, 'numba first call': t2 - t1, 'read bag': t3 - t2,
+                  'align': (t4 - t3) - (t3 - t2), 'write CSV': t5 - t4}}))
+"""
+
+
+def stages(bag, params, out_csv, root=ROOT):
+    """Seconds of each stage of one replay in a fresh process (the replay's own functions).
+
+    ``align`` is ``replay_bag`` less a separate timing of its bag read (input checks,
+    coarse and fine alignment); ``numba first call`` the kernels' one-time start
+    (loading compiled code from the cache) that the replay otherwise pays at its first
+    kernel call; interpreter start-up and exit are the process time less their sum.
+    """
+    code = STAGES.format(root=str(root), bag=str(bag), params=str(params), csv=str(out_csv))
+    env = dict(os.environ, OPENBLAS_NUM_THREADS='1')
+    out = subprocess.run([sys.executable, '-c', code], check=True, env=env, cwd=str(root),
+                         capture_output=True, text=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
 
 
 def pyins_inputs(bag):
@@ -152,6 +190,8 @@ def main(argv=None):
             times['pyins 0.1 s'].append(pyins_run(inputs, 0.1))
             times['pyins 1 s'].append(pyins_run(inputs, 1.0))
         rows = sum(1 for _ in open(csv)) - 1
+        split = {f: [stages(bag, params[f], csv, roots[f]) for _ in range(args.repeats)]
+                 for f in roots}
     med = {k: statistics.median(v) for k, v in times.items()}
     ref, ref1 = med['pyins 0.1 s'], med['pyins 1 s']
     before = (' --before OLD', f'; "(before)": the checkout at {args.before}') \
@@ -176,6 +216,17 @@ def main(argv=None):
         lines.append(f'- `{f}`: {ref1 / med[f]:.1f}x faster than pyins with a 1 s time step '
                      f'({ref / med[f]:.1f}x with its default 0.1 s; target >= 10), '
                      f'{SECONDS / med[f]:,.0f}x real time (target >= 1000).')
+    names = list(next(iter(split.values()))[0])
+    lines += ['', f'Where the time of a replay goes (seconds, median of {args.repeats} runs '
+              'in fresh processes, the replay\'s own functions timed one after the other; '
+              '"rest" is the process time above less their sum: interpreter start-up '
+              'and exit):', '',
+              '| run | ' + ' | '.join(names) + ' | rest |',
+              '|---|' + '---|' * (len(names) + 1)]
+    for f, runs in split.items():
+        parts = [statistics.median(r[k] for r in runs) for k in names]
+        lines.append(f'| {f} | ' + ' | '.join(f'{x:.2f}' for x in parts)
+                     + f' | {med[f] - sum(parts):.2f} |')
     text = write_markdown(args.out, lines)
     print(text)
     return 0
