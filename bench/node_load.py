@@ -19,8 +19,12 @@ the node to its first ``imu/data`` message with an empty numba cache and with th
 cache filled (the IMU already flowing; the coarse phase publishes from the first
 sample).
 
+``relay`` in ``--filters`` runs, in the node's place, the least a node can do with the same
+traffic in rclpy: subscribe ``imu/data_raw`` and republish each message on ``imu/data``
+with the node's QoS and executor (``runner.make_executor``): the floor of the CPU share.
+
 Usage: python bench/node_load.py [--rate 1000] [--seconds 150] [--window 60]
-                                 [--filters asckf,kf] [--out FILE]
+                                 [--filters asckf,kf,relay] [--out FILE]
 """
 import argparse
 import os
@@ -83,6 +87,28 @@ for t, kind, m in msgs:
 print('done', flush=True)
 node.destroy_node()
 rclpy.shutdown()
+'''
+
+
+RELAY = r'''
+import sys
+sys.path.insert(0, {root!r})
+import rclpy
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import Imu
+from sins_align_ros.ros.runner import make_executor, run
+
+
+def make_relay():
+    node = rclpy.create_node('relay')
+    qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                     history=HistoryPolicy.KEEP_LAST)
+    pub = node.create_publisher(Imu, 'imu/data', qos)
+    node.create_subscription(Imu, 'imu/data_raw', pub.publish, qos)
+    return node
+
+
+sys.exit(run(make_relay, 'relay', make_executor))       # spun as the node is
 '''
 
 
@@ -156,10 +182,11 @@ def run_case(fine_filter, args, folder, cache_dir):
     t_go = time.time()
     time.sleep(2.0)                                   # the IMU is flowing
     t_launch = time.time()
-    node = subprocess.Popen([sys.executable, '-m', 'sins_align_ros.ros.alignment_node',
-                             '--ros-args', '--params-file',
-                             str(params_yaml(folder, fine_filter))],
-                            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    cmd = ([sys.executable, '-c', RELAY.format(root=str(ROOT))] if fine_filter == 'relay'
+           else [sys.executable, '-m', 'sins_align_ros.ros.alignment_node', '--ros-args',
+                 '--params-file', str(params_yaml(folder, fine_filter))])
+    node = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL,
+                            stderr=open(Path(folder) / f'{fine_filter}.log', 'w'))
     while not listener.rows and time.time() - t_launch < 60.0:
         time.sleep(0.01)
     cold = listener.rows[0][0] - t_launch if listener.rows else float('nan')
@@ -172,6 +199,9 @@ def run_case(fine_filter, args, folder, cache_dir):
     time.sleep(1.0)
     stop_processes([node, pub])
     listener.close()
+    if not listener.rows:
+        log = (Path(folder) / f'{fine_filter}.log').read_text()[-2000:]
+        raise RuntimeError(f'{fine_filter}: no imu/data message arrived; its log:\n{log}')
     rows = np.array(listener.rows)
     late = rows[(rows[:, 0] >= t0) & (rows[:, 0] <= t1)]
     lat = (late[:, 0] - late[:, 1]) * 1e3
@@ -195,7 +225,7 @@ def main(argv=None):
         cache = Path(folder) / 'numba'            # empty: the first node compiles into it
         for k, f in enumerate(args.filters.split(',')):
             results[f] = run_case(f, args, folder, cache)
-            results[f]['cache'] = 'filled' if k else 'empty'
+            results[f]['cache'] = '-' if f == 'relay' else 'filled' if k else 'empty'
     lines = ['# The live node at a 1 kHz IMU (issue 22, must-show 4 and 5)', '',
              f'Command: `python bench/node_load.py --rate {args.rate:.0f} --seconds '
              f'{args.seconds:.0f} --window {args.window:.0f} --filters {args.filters}` on '
