@@ -46,7 +46,7 @@ from ..nav.frames import dcm_to_euler, euler_cov_from_phi_cov
 from ..units import DPH
 from . import coarse_stage
 from .convergence import MIN_SPAN_S, SHRINK, WINDOW_S
-from .factory import is_aided, make_engine
+from .factory import is_aided
 from .motion import choose_filter, gnss_motion
 
 #: shadow filter epochs per second (still base)
@@ -355,7 +355,8 @@ def _heading_source(p):
 
 def _new_stage(p):
     """Return a fine stage as the pipeline would start it after coarse, and its start stamp."""
-    from .fine_stage import Clock, FineStage       # fine_stage imports this module
+    from .fine_stage import Clock                  # fine_stage imports this module
+    from .handover import fine_stage_for           # (which imports fine_stage)
     cfg = dict(p.cfg)
     cfg['fine_filter'] = choose_filter(cfg, False)
     position = p.position if p.position is not None else p.gnss.position(cfg, False)[0]
@@ -368,15 +369,11 @@ def _new_stage(p):
     start = coarse_stage.CoarseResult(np.eye(3), sigma, np.asarray(position, float))
     known = (heading_limit_var(lat, p.noise) > 0.0 or p.noise.gyro_bias == 0.0
              or heading is not None)
-    engine, floor, _ = make_engine(cfg, p.noise, start, False, known)
-    if heading is not None and hasattr(engine, 'heading_measured'):
-        engine.heading_measured()
     clock = Clock()
     t0 = _t_first(p) + T
     clock.t_first = clock.t_last = t0
-    fine = FineStage(engine, floor, clock, cfg, known,
-                     unobservable_variance(lat, p.noise)[0], None, p.noise,
-                     copy.deepcopy(p.headings))
+    fine, _ = fine_stage_for(start, cfg, p.noise, False, known, heading is not None, clock,
+                             None, copy.deepcopy(p.headings))
     return fine, t0
 
 

@@ -12,6 +12,8 @@ every processed sample yields an output row (attitude, 1-sigma Euler angles, pha
   a still base or (GNSS-aided filters) a moving one;
 * :mod:`.gnss_buffer`: GNSS history and the queue of epochs waiting for the IMU;
 * :mod:`.motion`: whether GNSS shows the base moving; what ``fine_filter: auto`` runs;
+* :mod:`.handover`: from the full coarse window to a running fine stage (the filter
+  ``auto`` runs, the sensor self-check, the coarse attitude, the engine);
 * :mod:`.factory`: the engine of ``fine_filter`` (stationary seed 002; GNSS-aided
   seeds 000, 001, 003, 004);
 * :mod:`.fine_stage`: stepping the engine, its GNSS epochs, convergence, rows;
@@ -23,14 +25,14 @@ import math
 
 import numpy as np
 
-from ..models.stationary import unobservable_variance
-from . import coarse_stage, motion, self_check
+from . import coarse_stage, motion
 from . import params as prm
 from .expectation import Forecaster
-from .factory import is_aided, make_engine, noise_spec
-from .fine_stage import ALIGNED, FINE, Clock, FineStage
+from .factory import is_aided, noise_spec
+from .fine_stage import ALIGNED, FINE, Clock
 from .gnss_buffer import GnssBuffer
-from .heading import HeadingBuffer, coarse_heading
+from .handover import fine_stage_for, hand_over
+from .heading import HeadingBuffer
 from .installation import Installation
 from .output import Output, Rows, assemble, unknown
 from .preprocess import Preprocessor
@@ -291,7 +293,10 @@ class AlignmentPipeline:
             self.position = np.array([lat, self.position[1], h])
         start = coarse_stage.CoarseResult(np.asarray(C_b_n, float),
                                           np.asarray(sigma_phi, float), self.position)
-        self._start_engine(start)
+        self.fine, warnings = fine_stage_for(start, self.cfg, self.noise, bool(self.gnss.vels),
+                                             True, False, self.clock, self.install,
+                                             self.headings)
+        self.warnings.extend(warnings)
 
     def restart_from_coarse(self, reason):
         """Restart from coarse alignment (keeping the GNSS history) and say why."""
@@ -304,74 +309,19 @@ class AlignmentPipeline:
     def _finish_coarse(self):
         window = self.window.arrays(self.clock.t_first)
         self.window = coarse_stage.CoarseWindow(self.cfg['coarse_duration'])
-        m = motion.judge(self.gnss, self.cfg, window, self.install)
-        self.cfg['fine_filter'] = motion.choose_filter(self.cfg, m.moving)
-        self.aided = is_aided(self.cfg['fine_filter'])
-        reason = motion.cannot_start(self.cfg['fine_filter'], self.aided, m)
+        start, reason = hand_over(window, self.cfg, self.noise, self.clock, self.gnss,
+                                  self.headings, self.install)
         if reason is not None:
             self._diverged(reason)
             return
-        self._choose_position()          # a GNSS fix may have come in during coarse
-        if self.cfg['sensor_self_check']:
-            # biases only where the base is known to be at rest: GNSS says so, or (a
-            # stationary filter, chosen by the user or by auto) there is no GNSS
-            self._self_check(window, at_rest=not m.moving and (m.speed is not None
-                                                               or not self.aided))
-        res, info, reason = coarse_stage.run(window, self.cfg, self.noise, self.position,
-                                             self.gnss, self.clock.t_last, self.aided,
-                                             self.install)
-        self.coarse_info = info
-        if reason is not None:
-            self._diverged(reason)
-            return
-        self._take_heading(res, window)
-        no_heading = (self.check is not None and not self.check.heading_observable
-                      and not self.heading_measured)
-        # the self-check's finding replaces the coarse stage's own warning about the gyro
-        self.warnings.extend(w for w in res.warnings
-                             if not (no_heading and w.startswith('gyro bias')))
-        self._start_engine(res)
+        self.cfg, self.noise, self.aided = start.cfg, start.noise, start.aided
+        self.position, self.position_source = start.position, start.position_source
+        self.check, self.coarse_info = start.check, start.coarse_info
+        self.heading_measured = start.heading_measured
+        self.warnings.extend(start.warnings)
+        self.fine = start.fine
         # fixes that came in during coarse alignment are history, not measurements
         self.gnss.pending.clear()
-
-    def _take_heading(self, res, window):
-        """Give the coarse result ``res`` the last external heading, if one is recent.
-
-        Its yaw is carried to the window's end with the gyros' up rate (a turning car).
-        """
-        t_end = self.clock.t_last
-        fix = self.headings.latest(t_end)
-        if fix is None:
-            return
-        tt, dth = window[0], window[1]
-        turned = float(res.C_b_n[2] @ dth[tt > fix.t].sum(axis=0))
-        res.C_b_n, res.sigma = coarse_heading(res.C_b_n, res.sigma, fix.yaw + turned, fix.var)
-        self.coarse_info['coarse_heading_source'] = 'external'
-        self.heading_measured = True
-
-    def _self_check(self, window, at_rest):
-        """Check the sensor model against the coarse window; widen it where they disagree."""
-        self.check = self_check.check(window, self.position, self.cfg, at_rest, self.gnss)
-        if self.check.widened:
-            self.cfg.update(self.check.widened)
-            self.noise = noise_spec(self.cfg)
-        self.warnings.extend(self.check.findings)
-        warning = self_check.heading_warning(self.check, at_rest, self.aided)
-        if warning and not self.headings.latest(self.clock.t_last):
-            self.warnings.append(warning)
-
-    def _start_engine(self, start):
-        c = self.check
-        heading_known = (c is None or c.heading_observable or (self.aided and not c.at_rest)
-                         or self.heading_measured)
-        engine, floor, warnings = make_engine(self.cfg, self.noise, start, bool(self.gnss.vels),
-                                              heading_known)
-        self.warnings.extend(warnings)
-        if self.heading_measured and hasattr(engine, 'heading_measured'):
-            engine.heading_measured()
-        self.fine = FineStage(engine, floor, self.clock, self.cfg, heading_known,
-                              unobservable_variance(start.position[0], self.noise)[0],
-                              self.install, self.noise, self.headings)
 
     def _fill_last(self, out):
         """Put the coarse result into the last row of a coarse block."""
