@@ -92,6 +92,15 @@ def rotvec_to_dcm(phi):
     the Taylor series of both factors below 1e-4 rad.
     """
     phi = np.asarray(phi, dtype=float)
+    if phi.ndim == 1:                    # one vector: the same formula on scalars
+        x, y, z = phi.tolist()
+        a2 = x * x + y * y + z * z
+        a = math.sqrt(a2)
+        k1 = 1.0 - a2 / 6.0 if a < 1e-4 else math.sin(a) / a
+        k2 = 0.5 - a2 / 24.0 if a < 1e-4 else (1.0 - math.cos(a)) / a2
+        return np.array([[1.0 - k2 * (y * y + z * z), k2 * x * y - k1 * z, k2 * x * z + k1 * y],
+                         [k2 * x * y + k1 * z, 1.0 - k2 * (x * x + z * z), k2 * y * z - k1 * x],
+                         [k2 * x * z - k1 * y, k2 * y * z + k1 * x, 1.0 - k2 * (x * x + y * y)]])
     a2 = np.sum(phi * phi, axis=-1)[..., None, None]
     a = np.sqrt(a2)
     small = a < 1e-4
