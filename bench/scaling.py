@@ -17,7 +17,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
-from sins_align_ros.eval.markdown import machine_summary, write_markdown  # noqa: E402
+from sins_align_ros.eval.markdown import page_head, write_markdown  # noqa: E402
 from sins_align_ros.eval.run import run_pipeline  # noqa: E402
 from sins_align_ros.eval.scenarios import named, simulate  # noqa: E402
 from sins_align_ros.sim.presets import alignment_params  # noqa: E402
@@ -35,14 +35,14 @@ def main(argv=None):
     ap.add_argument('--repeats', type=int, default=3)
     ap.add_argument('--out', default=str(ROOT / 'bench' / 'results' / 'scaling.md'))
     args = ap.parse_args(argv)
-    lines = ['# Cost against IMU rate (issue 22, must-show 6)', '',
-             f'Command: `python bench/scaling.py --filters {args.filters} --repeats '
-             f'{args.repeats}` on {machine_summary()}.', '',
-             f'{SECONDS:.0f} s of each scenario, pipeline only (no file input or output), '
-             'blocks of 1 s of samples, '
-             f'best of {args.repeats} after a warm-up run.', '',
-             '| filter | scenario | IMU Hz | samples | s | x real time | us per sample |',
-             '|---|---|---|---|---|---|---|']
+    lines = page_head('Cost against IMU rate (issue 22, must-show 6)',
+                      f'python bench/scaling.py --filters {args.filters} --repeats '
+                      f'{args.repeats}',
+                      f'{SECONDS:.0f} s of each scenario, pipeline only (no file input or '
+                      'output), blocks of 1 s of samples, '
+                      f'best of {args.repeats} after a warm-up run.')
+    lines += ['| filter | scenario | IMU Hz | samples | s | x real time | us per sample |',
+              '|---|---|---|---|---|---|---|']
     for f in args.filters.split(','):
         for rate in RATES:
             sc = dataclasses.replace(named(CASES[f], SECONDS), imu_rate_hz=rate)

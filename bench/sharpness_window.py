@@ -26,7 +26,7 @@ from integrity import CACHE, RATE_HZ, scenario_of, told_params  # noqa: E402
 
 from sins_align_ros.eval.cache import simulate_cached  # noqa: E402
 from sins_align_ros.eval.integrity import published_sigma, sample_rows  # noqa: E402
-from sins_align_ros.eval.markdown import machine_summary, write_markdown  # noqa: E402
+from sins_align_ros.eval.markdown import page_head, write_markdown  # noqa: E402
 from sins_align_ros.eval.run import run_pipeline  # noqa: E402
 
 CELLS = 'vbch:seed004:navigation:right,vbckf:seed004:navigation:right'
@@ -55,13 +55,14 @@ def main(argv=None):
     ap.add_argument('--out', default=str(Path(__file__).parent / 'results' /
                                          'sharpness_window.md'))
     args = ap.parse_args(argv)
-    lines = ['# Sharpness at the end against the last minutes (issue 21)', '',
-             f'Command: `python bench/sharpness_window.py --cells {args.cells} --runs '
-             f'{args.runs} --window {args.window}` on {machine_summary()}.', '',
-             f'Seeds 1000-{999 + args.runs}, the integrity matrix\'s scenarios and parameters. '
-             'Per time before the end: the RMS error over the runs and the mean published '
-             'sigma (arcmin). Sharpness = mean sigma / RMS error, at the end (the matrix\'s) '
-             f'and over the last {args.window} s (all runs and 1-s samples).', '']
+    lines = page_head('Sharpness at the end against the last minutes (issue 21)',
+                      f'python bench/sharpness_window.py --cells {args.cells} --runs '
+                      f'{args.runs} --window {args.window}',
+                      f'Seeds 1000-{999 + args.runs}, the integrity matrix\'s scenarios and '
+                      'parameters. Per time before the end: the RMS error over the runs and '
+                      'the mean published sigma (arcmin). Sharpness = mean sigma / RMS error, '
+                      'at the end (the matrix\'s) and over the last '
+                      f'{args.window} s (all runs and 1-s samples).')
     for cell in args.cells.split(','):
         f, key, grade, told = cell.split(':')
         jobs = [(f, key, grade, told, s, args.window) for s in range(1000, 1000 + args.runs)]
@@ -72,7 +73,7 @@ def main(argv=None):
         lines += [f'## {f}, {key}, {grade} grade, told {told}', '',
                   '| s before the end | ' + ' | '.join(f'RMS {a} | sigma {a}' for a in AXES)
                   + ' |', '|---|' + '---|' * 6]
-        for off in OFFSETS:
+        for off in (o for o in OFFSETS if o <= E.shape[1]):
             k = E.shape[1] - off
             rms = np.sqrt(np.mean(E[:, k] ** 2, axis=0))
             sig = S[:, k].mean(axis=0)

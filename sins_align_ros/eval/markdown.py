@@ -16,3 +16,15 @@ def write_markdown(path, lines):
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text)
     return text
+
+
+def page_head(title, command, *paragraphs):
+    """Return the first lines of a result page: its title, the command and machine, text.
+
+    ``command``: the command line that wrote the page (shown as code); each of
+    ``paragraphs`` follows as one paragraph.
+    """
+    lines = [f'# {title}', '', f'Command: `{command}` on {machine_summary()}.', '']
+    for text in paragraphs:
+        lines += [text, '']
+    return lines
