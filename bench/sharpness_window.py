@@ -15,7 +15,6 @@ Usage: python bench/sharpness_window.py [--cells vbch:seed004:navigation:right,.
 """
 import argparse
 import sys
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +26,7 @@ from integrity import CACHE, RATE_HZ, scenario_of, told_params  # noqa: E402
 from sins_align_ros.eval.cache import simulate_cached  # noqa: E402
 from sins_align_ros.eval.integrity import published_sigma, sample_rows  # noqa: E402
 from sins_align_ros.eval.markdown import page_head, write_markdown  # noqa: E402
+from sins_align_ros.eval.pool import monte_carlo  # noqa: E402
 from sins_align_ros.eval.run import run_pipeline  # noqa: E402
 
 CELLS = 'vbch:seed004:navigation:right,vbckf:seed004:navigation:right'
@@ -66,8 +66,7 @@ def main(argv=None):
     for cell in args.cells.split(','):
         f, key, grade, told = cell.split(':')
         jobs = [(f, key, grade, told, s, args.window) for s in range(1000, 1000 + args.runs)]
-        with ProcessPoolExecutor(args.jobs) as ex:
-            res = list(ex.map(one, jobs))
+        res = monte_carlo(one, jobs, args.jobs, progress=False)
         E = np.array([r[0] for r in res])
         S = np.array([r[1] for r in res])
         lines += [f'## {f}, {key}, {grade} grade, told {told}', '',

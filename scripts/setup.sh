@@ -41,9 +41,12 @@ if [ ! -f "$stamp" ] || [ -n "$(find setup.py setup.cfg package.xml resource sin
   )
   # compile the numba kernels into their on-disk caches (the installed copy and the
   # source tree the tests import), so that no first run compiles in the middle of the data
+  # and no two test processes compile one kernel at once (the models', filters' and the
+  # CSV's kernels join warm_up when their modules are imported)
   for where in "$root/install/sins_align_ros/lib/python3.11/site-packages" "$root"; do
     (cd "$where" && "$venv/bin/python" -c \
-      "from sins_align_ros.nav import kernels; kernels.warm_up(); print(kernels.__file__)") \
+      "import sins_align_ros.align.pipeline, sins_align_ros.io.fixed_text
+from sins_align_ros.nav import kernels; kernels.warm_up(); print(kernels.__file__)") \
       >>"$root/log/colcon-build.txt" \
       || { echo "setup: compiling the numba kernels failed" >&2; exit 1; }
   done

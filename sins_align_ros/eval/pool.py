@@ -4,6 +4,8 @@ import sys
 import time
 from multiprocessing import Pool
 
+from ..nav import kernels
+
 
 def default_procs():
     """Return the number of the machine's cores."""
@@ -43,6 +45,10 @@ def monte_carlo(fn, jobs, procs=None, progress=True, stream=None):
             if progress:
                 progress_bar(k + 1, len(jobs), t0, stream)
         return out
+    # every kernel compiled (or loaded) here before the workers fork: worker processes
+    # compiling one cached kernel at once can leave numba's cache broken and segfault
+    # (numba issue 4807; seen in a fresh clone's test run)
+    kernels.warm_up()
     with Pool(procs) as pool:
         for k, (i, res) in enumerate(pool.imap_unordered(_Indexed(fn), enumerate(jobs)),
                                      start=1):

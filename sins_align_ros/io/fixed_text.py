@@ -16,6 +16,7 @@ so is every row when the kernels are not compiled (``SINS_ALIGN_NO_JIT=1``, no n
 """
 import numpy as np
 
+from ..nav import kernels
 from ..nav.kernels import COMPILED, jit
 
 #: magnitudes from here on are formatted by Python (the row of them)
@@ -114,6 +115,12 @@ def _format_rows(values, decimals, text_col, text_index, text_bytes, text_len):
         k += 2
         row_end[i] = k
     return buf[:k], row_end, python_rows
+
+
+@kernels.warms_up
+def _first_calls():
+    _format_rows(np.zeros((1, 1)), np.ones(1, np.int64), 0, np.zeros(1, np.int64),
+                 np.zeros((1, 1), np.uint8), np.zeros(1, np.int64))
 
 
 def format_table(values, decimals, text, text_col):
