@@ -17,14 +17,13 @@ so is every row when the kernels are not compiled (``SINS_ALIGN_NO_JIT=1``, no n
 import numpy as np
 
 from ..nav import kernels
-from ..nav.kernels import COMPILED, jit
 
 #: magnitudes from here on are formatted by Python (the row of them)
 _LARGE = 1e15
 _NAN, _INF = np.frombuffer(b'nan', np.uint8), np.frombuffer(b'inf', np.uint8)
 
 
-@jit
+@kernels.jit
 def _put_number(buf, k, x, d, scale):
     """Write ``'%.{d}f' % x`` at ``buf[k:]`` (|x| < 1e15 or not finite); return the end."""
     if x != x:
@@ -73,7 +72,7 @@ def _put_number(buf, k, x, d, scale):
     return k
 
 
-@jit
+@kernels.jit
 def _format_rows(values, decimals, text_col, text_index, text_bytes, text_len):
     """Kernel of :func:`format_table`: ``(buf, row_end, python_rows)``."""
     n, m = values.shape
@@ -133,7 +132,7 @@ def format_table(values, decimals, text, text_col):
     """
     values = np.ascontiguousarray(values, dtype=float)
     decimals = np.asarray(decimals, dtype=np.int64)
-    if not COMPILED:
+    if not kernels.COMPILED:
         return _python_rows(values, decimals, text, text_col, np.arange(len(values)))
     names, index = np.unique(np.asarray(text, dtype=str), return_inverse=True)
     encoded = [name.encode('ascii') for name in names]
