@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 
 from sins_align_ros.align.aided import INFLATION_SPAN, MAX_NOISE_SCALE
-from sins_align_ros.align.consistency import MAX_INFLATION, WINDOW, ConsistencyMonitor
+from sins_align_ros.align.consistency import (HISTORY, MAX_INFLATION, WINDOW,
+                                              ConsistencyMonitor)
 from sins_align_ros.align.moving import MovingBaseAlignment
 from sins_align_ros.eval.run import run_pipeline
 from sins_align_ros.eval.scenarios import named, simulate
@@ -41,6 +42,29 @@ def test_one_gnss_outlier_does_not_inflate():
     nis = rng.chisquare(4, size=WINDOW)
     nis[3] = 1e4
     assert _feed(ConsistencyMonitor(), nis) == [None] * WINDOW
+
+
+def test_rare_refused_epochs_are_left_out_and_frequent_ones_count():
+    """Three gate-refused outliers in one window: left out (they failed the test before).
+
+    Refusals beyond OUTLIER_SHARE of the last HISTORY epochs count: a model error or a
+    noisier receiver makes the gate refuse many epochs.
+    """
+    rng = np.random.default_rng(10)
+    nis = rng.chisquare(4, size=HISTORY)
+    refused = np.zeros(HISTORY, dtype=bool)
+    refused[[2, 5, 8]] = True                       # 10 % of HISTORY, all in one window
+    nis[refused] = 1e4
+    counted = ConsistencyMonitor()
+    assert [counted.add(float(v), 4) for v in nis[:WINDOW]][-1] is not None   # as before
+    mon = ConsistencyMonitor()
+    out = [mon.add(float(v), 4, rejected=bool(r)) for v, r in zip(nis, refused)]
+    assert out == [None] * HISTORY and mon.consistent
+    assert mon.status()['consistency_outliers_left_out'] == 3
+    # every epoch refused (a model error the gate keeps refusing): past the share, counted
+    mon = ConsistencyMonitor()
+    out = [mon.add(1e4, 4, rejected=True) for _ in range(WINDOW + 3)]
+    assert out[-1] == MAX_INFLATION and mon.n_outliers == 3
 
 
 def test_inflation_scales_the_covariance_and_the_process_noise():
@@ -171,7 +195,10 @@ def test_a_gnss_noise_burst_inflates_the_measurement_noise_and_re_enters():
 
     seen, st, final = _car_with(burst)
     tr = _transitions(seen, 250)
-    assert any('measurement noise inflated' in why for _, why in tr)
-    assert st['consistency_noise_inflations'] >= 1 and st['consistency_ok']
+    assert any('innovations inconsistent' in why for _, why in tr)
+    # mostly the measurement noise's remedy (a window's lag-1 test may still blame the
+    # model once: 1 state inflation and 2 noise inflations here)
+    assert st['consistency_noise_inflations'] > st['consistency_inflations']
+    assert st['consistency_ok']
     assert tr[-1][0] == 'aligned'
     assert np.all(np.abs(final.euler) <= 3.0 * final.sigma)

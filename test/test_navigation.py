@@ -16,7 +16,8 @@ from sins_align_ros.filters.ukf import UKF
 from sins_align_ros.filters.vbakf import VBAKF
 from sins_align_ros.models import loosely_coupled as lc
 from sins_align_ros.nav import earth
-from sins_align_ros.nav.frames import attitude_error, euler_to_dcm, quat_to_dcm, rotvec_to_dcm
+from sins_align_ros.nav.frames import (attitude_error, dcm_to_euler, euler_to_dcm, quat_to_dcm,
+                                       rotvec_to_dcm)
 from sins_align_ros.nav.mechanization import Strapdown
 from sins_align_ros.sim.imu import ImuSimulator, ImuSpec
 from sins_align_ros.sim.presets import alignment_params, scenario
@@ -227,6 +228,53 @@ def test_markov_compensation_decays_with_its_correlation_time():
     with pytest.raises(ValueError):
         IntegratedNavigation(np.eye(3), np.zeros(3), LAT, 0.0, 0.0, P0, Qc, np.eye(6),
                              method='nope')
+
+
+@pytest.mark.parametrize('course_off_deg, taken',
+                         [(20.0, False), (-29.0, False), (35.0, True), (180.0, True)])
+def test_a_lost_heading_is_taken_from_the_track_only_where_they_disagree(course_off_deg, taken):
+    """The re-acquisition keeps a heading better than the track's that the track agrees with.
+
+    A USV in severe sea (5 Hz GNSS, defaults) had its heading, known to 14' after 220 s,
+    replaced by a track 48 deg off it because the mark was left from the start.
+    """
+    from types import SimpleNamespace
+    P0, Qc = model_noise(15, [1e-3, 1e-3, 0.2], 0.1, 1.0, (DPH, 0.0), (100 * UG, 0.0), 0.0,
+                         0.0, 100.0, 1000.0)
+    yaw = 30.0 * DEG
+    eng = IntegratedNavigation(euler_to_dcm(np.array([0.01, -0.02, yaw])), np.zeros(3), LAT,
+                               0.0, 0.0, P0, Qc, np.eye(6), method='kf')
+    eng.heading_lost = True
+    P = eng.kf.P.copy()
+    P[2, 2] = (15.0 * DEG) ** 2              # held at the linear model's limit: lost
+    eng.kf.P = P
+    lost = SimpleNamespace(v_n=np.array([0.0, 3.0, 0.0]))       # 60 deg off
+    eng._reacquire_heading(lost)
+    assert eng.n_heading_reacquired == 1 and not eng.heading_lost
+    # a filter that has since found its heading (sigma 0.5 deg, under the track's 10)
+    eng.mech.C_b_n = euler_to_dcm(np.array([0.01, -0.02, yaw]))
+    P[2, 2] = (0.5 * DEG) ** 2
+    eng.kf.P = P
+    eng.n_heading_reacquired = 0
+    eng.heading_lost = True
+    course = yaw + course_off_deg * DEG
+    fix = SimpleNamespace(v_n=np.array([3.0 * math.cos(course), 3.0 * math.sin(course), 0.0]))
+    P_before = eng.kf.P.copy()
+    eng._reacquire_heading(fix)
+    assert not eng.heading_lost
+    got = dcm_to_euler(eng.mech.C_b_n)
+    if taken:
+        assert got[2] == pytest.approx(math.atan2(math.sin(course), math.cos(course)),
+                                       abs=1e-12)
+        assert eng.kf.P[2, 2] == pytest.approx((10.0 * DEG) ** 2)
+        assert eng.n_heading_reacquired == 1
+    else:
+        assert got[2] == pytest.approx(yaw, abs=1e-12)
+        np.testing.assert_array_equal(eng.kf.P, P_before)
+        assert eng.n_heading_reacquired == 0
+    assert got[:2] == pytest.approx([0.01, -0.02], abs=1e-12)     # tilt kept either way
+    eng._reacquire_heading(SimpleNamespace(v_n=np.array([0.0, 5.0, 0.0])))
+    assert eng.n_heading_reacquired == int(taken)                  # the mark is gone
 
 
 def test_a_constant_bias_folded_into_the_markov_state_keeps_the_markov_drive():

@@ -150,13 +150,15 @@ def riccati(P0, q, r, tau):
     return out
 
 
-def first_aligned(t, P, t_stage, converged, min_duration, max_tilt, max_heading):
+def first_aligned(t, P, t_stage, converged, min_duration, max_tilt, max_heading,
+                  restages=True):
     """Apply the pipeline's rules to a forecast variance curve ``P`` (M, 3) at ``t`` (M,).
 
-    The stage (started at ``t_stage``; ``converged`` already latched) converges where its
-    heading sigma has run ``min_duration`` and fell less than 2 % against the oldest of the
-    last :data:`~.convergence.WINDOW_S` s (spanning at least ``MIN_SPAN_S``); ``aligned``
-    from then on where the tilt and heading 1-sigma are within the bounds. Returns
+    The stage (started at ``t_stage``; ``converged`` already latched) settles where it has
+    run ``min_duration`` and, for a still-base stage (``restages``), its heading sigma
+    fell less than 2 % against the oldest of the last :data:`~.convergence.WINDOW_S` s
+    (spanning at least ``MIN_SPAN_S``); ``aligned`` from then on where the tilt and
+    heading 1-sigma are within the bounds (:mod:`.fine_stage`). Returns
     ``(index of aligned or None, index of a ready tilt or None)``.
     """
     s = np.sqrt(np.maximum(P, 0.0))
@@ -166,8 +168,10 @@ def first_aligned(t, P, t_stage, converged, min_duration, max_tilt, max_heading)
     if not converged:
         # the monitor compares with the oldest sigma of its window, which must span enough
         old = np.searchsorted(t, t - WINDOW_S, side='left')
-        ok = (t - t[old] >= MIN_SPAN_S) & (t - t_stage >= min_duration)
-        ok[ok] = s[ok, 2] >= SHRINK * s[old[ok], 2]
+        ok = t - t_stage >= min_duration
+        if restages:
+            ok &= t - t[old] >= MIN_SPAN_S
+            ok[ok] = s[ok, 2] >= SHRINK * s[old[ok], 2]
         conv = np.flatnonzero(ok)
         if not len(conv):
             return None, i_tilt
@@ -249,7 +253,8 @@ def _apply_rules(p, fine, t_abs, Pf):
     if not heading_known:
         max_head = -1.0
     i_al, i_tilt = first_aligned(t_abs, Pf, fine.monitor.t0, fine.converged,
-                                 cfg['stage_min_duration'], max_tilt, max_head)
+                                 cfg['stage_min_duration'], max_tilt, max_head,
+                                 fine.engine.restages)
     to_elapsed = t_abs - _t_first(p)
     sig = np.sqrt(np.maximum(Pf[-1 if i_al is None else i_al], 0.0))
     note = ''

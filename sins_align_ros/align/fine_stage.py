@@ -11,10 +11,16 @@ The GNSS-aided engines' innovations are checked against their covariance
 (:class:`~.consistency.ConsistencyMonitor`); an inconsistent filter has its covariance
 inflated and is not ``aligned`` until the test passes again.
 
-``aligned`` means good enough for the user, not only converged: the last stage must
-have converged (once) and the roll/pitch and heading 1-sigma must be within
-``aligned_max_tilt_sigma_deg`` / ``aligned_max_heading_sigma_deg``; when either grows
-past its bound the phase goes back to ``fine`` with the reason. A heading the sensors
+``aligned`` means good enough for the user (DESIGN.md: the attitude meets the user's
+thresholds and the consistency checks pass): the roll/pitch and heading 1-sigma must be
+within ``aligned_max_tilt_sigma_deg`` / ``aligned_max_heading_sigma_deg`` and the
+consistency monitor must pass; when either stops holding the phase goes back to
+``fine`` with the reason. Before that, the stage must have settled once: the
+still-base family's last stage must have converged (its convergence restages it), a
+GNSS-aided filter must have run ``stage_min_duration`` seconds. An aided filter's
+sigma may keep shrinking for minutes (a USV's heading from its sway, 14' and still
+falling at 300 s); waiting for it to stop, as the still-base stages do, left such runs
+``fine`` to the end with an attitude far inside the bounds. A heading the sensors
 cannot observe (``heading_known`` False: a gyro that cannot see Earth rate at rest) is
 published with the variance of an unknown angle, :data:`HEADING_UNKNOWN_VAR`, and the
 roll/pitch variances are then at least ``tilt_bound``: with the heading unknown the
@@ -73,7 +79,8 @@ class FineStage:
         self.tilt_bound = float(tilt_bound)
         self.max_tilt = math.radians(cfg['aligned_max_tilt_sigma_deg'])
         self.max_heading = math.radians(cfg['aligned_max_heading_sigma_deg'])
-        #: the last stage has converged (latched): from then on the bounds decide
+        #: the stage has settled (latched; the module docstring): from then on the
+        #: bounds and the consistency monitor decide
         self.converged = False
         self.floor = np.asarray(floor, dtype=float)
         self.clock = clock
@@ -163,10 +170,12 @@ class FineStage:
         self.history.add(t, P.diagonal())
         sig_u = math.sqrt(max(P[2, 2], 0.0))
         if not self.converged:
-            if not self.monitor.converged(t, sig_u):
+            if not self.engine.restages:
+                if t - self.monitor.t0 < self.monitor.min_duration:
+                    return
+            elif not self.monitor.converged(t, sig_u):
                 return
-            if (self.engine.restages and self.engine.restage_helps
-                    and self.stage < self.max_stages):
+            elif self.engine.restage_helps and self.stage < self.max_stages:
                 self.engine.restage()
                 self._att_cov = None
                 self.stage += 1
@@ -363,7 +372,8 @@ class FineStage:
                 # the measurement-noise remedy only where the engine sets R (the
                 # adaptive filters estimate it themselves)
                 factor = self.consistency.add(eng.last_nis, eng.last_dof, eng.last_u,
-                                              eng.last_rows if eng.sets_R else None)
+                                              eng.last_rows if eng.sets_R else None,
+                                              rejected=bool(eng.kf.rejected))
                 if factor is not None:
                     eng.inflate(factor)
                 if self.consistency.r_factors:

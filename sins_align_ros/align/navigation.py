@@ -40,7 +40,12 @@ gyro bias) the 15-state filters published 8-15 deg of heading sigma over a headi
   velocity of at least ``track_min_speed_mps`` it is taken afresh from the GNSS track,
   as the coarse stage does (the vehicle's nose along its velocity; 1-sigma
   ``track_heading_sigma_deg``), a nonlinear re-acquisition that keeps position,
-  velocity, tilt and sensor estimates. The UKF (``ukf``, seed 003) keeps the heading
+  velocity, tilt and sensor estimates. Where the filter has since found a heading
+  better than the track's (its sigma below ``track_heading_sigma_deg``: manoeuvres did
+  it) and the track agrees with it within 3 sigma, the filter's is kept and only the
+  mark is cleared: a boat's track is off its heading by its crab and sway, and a mark
+  left standing from the start had a USV in severe sea throw away a heading known to
+  14' for a track 48 deg off, 220 s later. The UKF (``ukf``, seed 003) keeps the heading
   error nonlinear in its model instead (seed 004 eq. 3) and keeps its own force.
 * The claim. The heading goes out with the filter's variance only while its 1-sigma is
   at most :data:`HEADING_CLAIM_MAX_DEG`, where the linearisation holds; above it the
@@ -64,7 +69,7 @@ from ..filters.vbakf import VBAKF
 from ..models import large_misalignment as lm
 from ..models import loosely_coupled as lc
 from ..nav import earth
-from ..nav.frames import dcm_to_euler, euler_to_dcm, orthonormalize, rotvec_to_dcm
+from ..nav.frames import dcm_to_euler, euler_to_dcm, orthonormalize, rotvec_to_dcm, wrap_pi
 from ..units import DPH, UG
 from .aided import ANGLE_UNKNOWN_VAR, GnssAidedEngine
 from .gnss_gate import GnssGate
@@ -263,13 +268,20 @@ class IntegratedNavigation(GnssAidedEngine):
             return
         m = self.mech
         eul = dcm_to_euler(m.C_b_n)
-        eul[2] = math.atan2(v[1], v[0])
+        track = math.atan2(v[1], v[0])
+        self.heading_lost = False
+        var_track = self.track_heading_sigma ** 2
+        var_psi = float(self.kf.P[2, 2])
+        if var_psi < var_track and wrap_pi(track - eul[2]) ** 2 <= 9.0 * (var_psi + var_track):
+            # the filter has since found a heading better than the track's, and the track
+            # agrees with it (within crab and sway): keep the filter's
+            return
+        eul[2] = track
         m.C_b_n = euler_to_dcm(eul)
         P = self.kf.P.copy()
         P[2, :] = P[:, 2] = 0.0
         P[2, 2] = self.track_heading_sigma ** 2
         self.kf.P = P
-        self.heading_lost = False
         self.n_heading_reacquired += 1
 
     def _heading_taken(self):

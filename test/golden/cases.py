@@ -116,10 +116,10 @@ CASES = (
     Case('ckf_ship_position_only', 'ckf', 'bag', 'CKF on the seed 000 ship, GNSS position '
          'only (velocity topic ignored)', scenario='seed000_case1', seed=4,
          bag_duration=120.0, params={**SHIP, 'coarse_duration': 30.0},
-         args=('--vel-topic', ''), expect=('coarse', 'fine')),
+         args=('--vel-topic', ''), expect=('coarse', 'fine', 'aligned')),
     Case('asckf_ship', 'asckf', 'bag', 'ASCKF (fading, Sage-Husa) on the seed 000 ship, '
          'GNSS position and velocity', scenario='seed000_case1', seed=4, bag_duration=120.0,
-         params={**SHIP, 'coarse_duration': 30.0}, expect=('coarse', 'fine')),
+         params={**SHIP, 'coarse_duration': 30.0}, expect=('coarse', 'fine', 'aligned')),
     # seed 004 USV in severe sea with GNSS outliers (GNSS velocity measured)
     Case('vbckf_usv', 'vbckf', 'bag', 'VBCKF on the seed 004 USV; the filter is told a '
          '5 deg/h gyro (the consistency monitor inflates its covariance)',
@@ -135,7 +135,7 @@ CASES = (
     Case('kf_flight', 'kf', 'bag', '15-state KF on seed 001\'s flight (straight and level, '
          'then the 2 m/s^2 acceleration from 120 s), navigation columns',
          scenario='seed001_flight', seed=1, bag_duration=150.0, params=dict(FLIGHT),
-         every=50, expect=('coarse', 'fine')),
+         every=50, expect=('coarse', 'fine', 'aligned')),
     Case('vbakf_flight', 'vbakf', 'bag', 'VBAKF on seed 001\'s flight with the paper\'s '
          '9x Q, 30 s coarse', scenario='seed001_flight', seed=1, bag_duration=200.0,
          params={**FLIGHT, 'coarse_duration': 30.0, 'nav_q_scale': 9.0}, every=50),
