@@ -213,6 +213,37 @@ def test_mvbakf_posterior_moments():
         MVBAKF(np.zeros(4), np.eye(4), Q, R, moment='median')
 
 
+def test_a_dropped_horizontal_force_becomes_velocity_noise():
+    """Below FORCE_SIGNIFICANCE sigma the force leaves F, and P_psi |f_h|^2 T^2 joins Q_v."""
+    from sins_align_ros.align.navigation import FORCE_SIGNIFICANCE
+    P0, Qc = model_noise(15, [0.1, 0.1, 0.2], 0.1, 1.0, (200 * DPH, 0.0), (5000 * UG, 0.0),
+                         0.0, 0.0, 300.0, 1000.0)
+    eng = IntegratedNavigation(np.eye(3), np.zeros(3), LAT, 0.0, 0.0, P0, Qc, np.eye(6),
+                               method='kf')
+    d = np.diag(eng.kf.P)
+    g = earth.gravity(LAT, 0.0)
+    s = math.sqrt(g * g * max(d[0], d[1]) + float(np.max(d[eng.i_nab])))
+    weak = np.array([0.8 * FORCE_SIGNIFICANCE * s, 0.0, g])
+    assert eng._model_force(weak, LAT, 0.0)[:2] == pytest.approx([0.0, 0.0])
+    assert eng._unmodelled_acc_var == pytest.approx(d[2] * weak[0] ** 2)
+    strong = np.array([1.2 * FORCE_SIGNIFICANCE * s, 0.0, g])
+    np.testing.assert_array_equal(eng._model_force(strong, LAT, 0.0), strong)
+    assert eng._unmodelled_acc_var == 0.0
+    # the interval's Q takes it on the horizontal velocity rows
+    for _ in range(50):
+        eng.step_imu(np.zeros(3), weak * 0.01, 0.01)
+    eng._transition()
+    eng._set_process_noise()
+    Q_with = eng.kf.Q.copy()
+    eng._unmodelled_acc_var = 0.0
+    eng._set_process_noise()
+    dq = np.diag(Q_with - eng.kf.Q)
+    k = np.arange(15)[eng.i_v]
+    T = eng.sums.T
+    assert dq[k[:2]] == pytest.approx(d[2] * weak[0] ** 2 * T * T, rel=0.05)
+    assert np.all(np.delete(dq, k[:2]) == 0.0)
+
+
 def test_markov_compensation_decays_with_its_correlation_time():
     P0, Qc = model_noise(15, [1e-3] * 3, 0.1, 1.0, (DPH, 0.0), (100 * UG, 0.0), 0.0, 0.0,
                          100.0, 1000.0)
