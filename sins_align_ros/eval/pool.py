@@ -2,7 +2,7 @@
 import os
 import sys
 import time
-from multiprocessing import Pool
+import multiprocessing
 
 from ..nav import kernels
 
@@ -49,7 +49,10 @@ def monte_carlo(fn, jobs, procs=None, progress=True, stream=None):
     # compiling one cached kernel at once can leave numba's cache broken and segfault
     # (numba issue 4807; seen in a fresh clone's test run)
     kernels.warm_up()
-    with Pool(procs) as pool:
+    # workers forked from a clean server process, not from this one: a fork of a
+    # process that has run rclpy (a test worker) inherits its middleware threads and
+    # objects, and the child segfaulted collecting them (an intermittent test hang)
+    with multiprocessing.get_context('forkserver').Pool(procs) as pool:
         for k, (i, res) in enumerate(pool.imap_unordered(_Indexed(fn), enumerate(jobs)),
                                      start=1):
             out[i] = res
