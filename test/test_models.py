@@ -155,3 +155,22 @@ def test_large_azimuth_compiled_transition_equals_the_numpy_reference(n):
             ref, rel=1e-13, abs=1e-15)
         assert la.propagate(X[:, 3], f_n, v_n, 0.8, 10.0, 1.0, sub, C) == pytest.approx(
             ref[:, 3], rel=1e-13, abs=1e-15)
+
+
+def test_reset_jacobian_is_the_error_left_by_a_feedback():
+    """After the attitude is corrected by C_n^n'(phi_hat)^T the error is J dphi: heading kept.
+
+    A heading error of 3 deg with tilt corrections of 1-2 mrad: the old transform
+    (C_n^n'(phi_hat)^T) put 1e-3 x 0.05 rad of heading into the tilts; the error the
+    feedback really leaves has tilts of second order (1e-6 rad) only.
+    """
+    phi_hat = np.array([1e-3, -2e-3, 0.6])
+    for dphi in (np.array([0.0, 0.0, 0.05]), np.array([2e-4, -1e-4, 0.0]),
+                 np.array([3e-4, 1e-4, -0.02])):
+        C_left = la.C_n_nprime(phi_hat).T @ la.C_n_nprime(phi_hat + dphi)
+        left = la.misalignment_of(C_left, np.eye(3))
+        J = la.reset_jacobian(phi_hat)
+        np.testing.assert_allclose(left, J @ dphi, atol=3e-6)
+        old = la.C_n_nprime(phi_hat).T @ dphi
+        if dphi[2] != 0.0:
+            assert np.max(np.abs(old[:2] - left[:2])) > 10 * 3e-6

@@ -215,7 +215,7 @@ def test_mvbakf_posterior_moments():
 
 def test_a_dropped_horizontal_force_becomes_velocity_noise():
     """Below FORCE_SIGNIFICANCE sigma the force leaves F, and P_psi |f_h|^2 T^2 joins Q_v."""
-    from sins_align_ros.align.navigation import FORCE_SIGNIFICANCE
+    from sins_align_ros.align.force import FORCE_SIGNIFICANCE
     P0, Qc = model_noise(15, [0.1, 0.1, 0.2], 0.1, 1.0, (200 * DPH, 0.0), (5000 * UG, 0.0),
                          0.0, 0.0, 300.0, 1000.0)
     eng = IntegratedNavigation(np.eye(3), np.zeros(3), LAT, 0.0, 0.0, P0, Qc, np.eye(6),

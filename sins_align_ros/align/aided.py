@@ -25,8 +25,10 @@ import numpy as np
 
 from ..filters.cubature import batched
 from ..filters.kf import nis
+from ..nav import earth
 from ..nav.mechanization import MechanizationOptions, Strapdown
 from ..units import DPH, UG
+from .force import model_force
 from .gnss_gate import FilterDiverged, GnssGate
 from .heading import LINEAR_MAX, gated_yaw_update, take_heading
 
@@ -327,6 +329,9 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies):
         #: used by filters that take R from the engine (not ``estimates_R``, not adaptive)
         self.R_scale = np.ones(len(self.R_nominal))
         self.sets_R = not (getattr(kf, 'estimates_R', False) or self.adaptive)
+        #: acceleration variance (m/s^2)^2 the heading error puts on the horizontal velocity
+        #: through a horizontal force the error model dropped (:meth:`_model_force`)
+        self._unmodelled_acc_var = 0.0
 
     # -- IMU rate -------------------------------------------------------------------
     def step_imu(self, dtheta, dv, dt):
@@ -380,8 +385,9 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies):
         """
         try:
             fx = self._transition()
-            self._set_process_noise()
+            lent = self._set_process_noise()
             self.kf.predict(fx)
+            self._return_process_noise(lent)
         except (np.linalg.LinAlgError, ValueError) as exc:
             raise FilterDiverged(f'filter diverged in a prediction ({exc})') from None
         self.n_predict_only += without_gnss
@@ -392,9 +398,53 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies):
         return dtheta, dv
 
     def _set_process_noise(self):
-        """Q of the interval since the last epoch; an adaptive filter keeps its estimate."""
+        """Set Q of the interval since the last epoch; return what was lent, or None.
+
+        ``diag(Qc) T`` plus a dropped force's velocity noise (:meth:`_force_noise`). An
+        adaptive filter keeps its own Q; the dropped force's part is lent to it for the
+        step and taken back after it (:meth:`_return_process_noise`).
+        """
+        T = max(self.sums.T, 1e-3)
+        E = self._force_noise(T)
         if not self.adaptive:
-            self.kf.Q = np.diag(self.Qc * max(self.sums.T, 1e-3))
+            self.kf.Q = np.diag(self.Qc * T) + (0.0 if E is None else E)
+            return None
+        if E is not None:
+            self.kf.Q = self.kf.Q + E
+        return E
+
+    def _return_process_noise(self, lent):
+        """Take back the process noise :meth:`_set_process_noise` lent (None: nothing)."""
+        if lent is not None:
+            self.kf.Q = self.kf.Q - lent
+
+    def _model_force(self, f_n, lat, h):
+        """Return the specific force (3,) the error model uses (:func:`.force.model_force`).
+
+        ``f_n`` (3,) the interval's mean force as the model takes it (ENU, m/s^2); the
+        sigma is the filter's own tilt and accelerometer-bias variances'. A dropped
+        force's heading variance is kept for :meth:`_force_noise`.
+        """
+        d = np.diag(self.kf.P)
+        k = np.arange(len(d))[self.i_phi]
+        var_bias = 0.0 if self.i_nab is None else float(np.max(d[self.i_nab]))
+        f, self._unmodelled_acc_var = model_force(
+            f_n, max(d[k[0]], d[k[1]]), d[k[2]], var_bias, earth.gravity(lat, h))
+        return f
+
+    def _force_noise(self, T):
+        """Velocity process noise (n, n) of a force dropped over ``T`` s, or None.
+
+        The heading error's velocity error through the dropped force,
+        ``P_psi |f_h|^2 T^2`` on each horizontal velocity (:mod:`.force`).
+        """
+        if self._unmodelled_acc_var <= 0.0:
+            return None
+        n = len(self.kf.x)
+        k = np.arange(n)[self.i_v][:2]
+        E = np.zeros((n, n))
+        E[k, k] = self._unmodelled_acc_var * T * T
+        return E
 
     def _restart_interval(self):
         self._interval_ended(self.sums.T)
@@ -430,7 +480,7 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies):
                                  'state)') from None
         rows = self.rows[idx]
         hx = batched(lambda X: X[rows])
-        self._set_process_noise()
+        lent = self._set_process_noise()
         if self.sets_R or self.use_reported_cov:   # (never for an adaptive filter)
             R = self.R_nominal.copy()
             if self.use_reported_cov:
@@ -448,6 +498,7 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies):
         max_nis = self.gate.threshold(len(idx), kf)
         try:
             upd = kf.step(fx, z, hx, idx, max_nis=max_nis)
+            self._return_process_noise(lent)
             if arm is not None:
                 self._return_arm_noise(arm)
             self.last_nis = nis(upd.y, upd.Pzz)

@@ -213,6 +213,7 @@ class MovingBaseAlignment(GnssAidedEngine):
         if self.has_accel_bias:
             C = orthonormalize(s.C_sum / T)
             f_n = true_specific_force(f_n, C, self.kf.x)
+        f_n = self._model_force(f_n, lat, h)
         sub = max(1, int(math.ceil(T / 1.0)))
         return batched(lambda X: la.propagate(X, f_n, v_n, lat, h, T, substeps=sub, C_b_n=C))
 
@@ -252,11 +253,13 @@ class MovingBaseAlignment(GnssAidedEngine):
         # vertical channel: not in the model; held to the GNSS height (and velocity)
         if fix is not None:
             m.hold_vertical(fix.h, fix.v_n[2] if fix.v_n is not None else 0.0)
-        # the corrected frame differs from the old computed one by C_n^n'^T: turn the
-        # drift (resolved in the computed frame) and the residual tilts with it; the
-        # accelerometer bias is in body axes and stays
+        # the corrected frame differs from the old computed one by C_n^n'^T: the drift,
+        # a vector resolved in the computed frame, turns with it (C_n^n'^T); the
+        # accelerometer bias is in body axes and stays. The misalignment is the
+        # rotation being reset: its residual error keeps its heading and has its tilts
+        # turned by the heading correction only (``la.reset_jacobian``)
         T = np.eye(self.n)
-        T[I_PHI, I_PHI] = C_n_np.T
+        T[I_PHI, I_PHI] = la.reset_jacobian(x[I_PHI])
         T[I_EPS, I_EPS] = C_n_np.T
         kf.transform(T)
         kf.x[:7] = 0.0

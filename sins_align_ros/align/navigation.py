@@ -18,27 +18,12 @@ small misalignment and a tactical IMU). On seed 001's flight with a MEMS IMU (20
 gyro bias) the 15-state filters published 8-15 deg of heading sigma over a heading
 54 deg off. Two causes, two remedies:
 
-* Spurious heading information. The heading error enters the velocity error only
-  through the horizontal specific force (``f_n x phi``). On a straight, unaccelerated
-  leg the true horizontal force is zero and the computed one is the filter's own tilt
-  error times g plus the residual accelerometer bias: its product with the heading
-  error is a product of two errors, which a first-order filter must not read as a
-  measurement of the heading. Taking it as one made the heading sigma stop growing at
-  about 12 deg while the error ran off with the gyro bias (the inconsistency that
-  observability-constrained EKFs address, Huang, Mourikis & Roumeliotis 2008). So the
-  error model uses the horizontal force only when it is beyond
-  :data:`FORCE_SIGNIFICANCE` sigma of what the filter's tilt and accelerometer
-  variances put on it (:meth:`IntegratedNavigation._model_force`); otherwise the heading
-  sigma grows with the gyro drift, as it should. At 3 sigma a ship with a MEMS IMU
-  turning at 1 deg/s (0.15 m/s^2 of centripetal force against 0.13 of tilt and bias)
-  read the rotating accelerometer bias as heading: the vertical gyro drift estimate
-  walked from +30 to -210 deg/h and the heading ended 15-30 deg off under a 4-6 deg
-  sigma (12 of 20 runs with a 5 Hz receiver, 4 of 20 at 1 Hz, told the right model;
-  bench/results/variations_gnss5_right.md). A dropped force still carries the heading
-  error into the velocity: that term, ``P_psi |f_h|^2`` per horizontal axis, is added
-  to the velocity process noise of the interval, so the tilt does not take it (a USV
-  in severe sea with a MEMS IMU, 40 deg off in heading at the start of fine alignment,
-  otherwise had its tilt 5 sigma off for a few seconds).
+* Spurious heading information. The horizontal specific force enters the error model
+  only when it is beyond 5 sigma of what the filter's own tilt and accelerometer
+  variances put on it, and a dropped force's heading term joins the velocity process
+  noise (:mod:`.force`, shared by every aided family; a MEMS ship turning at 1 deg/s
+  otherwise read its rotating accelerometer bias as heading, 15-30 deg off under a
+  4-6 deg sigma).
 * A heading error beyond the small-angle range. The linear filters (``kf``, ``vbakf``,
   ``mvbakf``) hold the heading variance at :data:`HEADING_LINEAR_MAX_DEG` (1-sigma;
   sin and 1 - cos of a 3-sigma error stay within 10 % / 0.3 rad of the linear model)
@@ -84,8 +69,6 @@ from .aided import ANGLE_UNKNOWN_VAR, GnssAidedEngine
 from .gnss_gate import GnssGate
 from .params import NAV_FILTERS
 
-#: the horizontal specific force enters the error model only beyond this many sigma
-FORCE_SIGNIFICANCE = 5.0
 #: heading 1-sigma (deg) up to which the linear filters' small-angle model holds
 HEADING_LINEAR_MAX_DEG = 15.0
 #: heading 1-sigma (deg) above which the heading is published as unknown
@@ -198,9 +181,6 @@ class IntegratedNavigation(GnssAidedEngine):
         #: epochs at which the heading variance was held at the linear model's range, and
         #: times the heading was then taken from the GNSS track
         self.n_heading_held = self.n_heading_reacquired = 0
-        #: acceleration variance (m/s^2)^2 the heading error puts on the horizontal velocity
-        #: through a horizontal force the error model dropped (:meth:`_model_force`)
-        self._unmodelled_acc_var = 0.0
         self.heading_lost = False
         self.track_heading_sigma = math.radians(float(track_heading_sigma_deg))
         self.track_min_speed = float(track_min_speed_mps)
@@ -242,26 +222,6 @@ class IntegratedNavigation(GnssAidedEngine):
             args = (f_n, v_n, C, m.lat, m.h, self.tau_g, self.tau_a, T)
             return batched(lambda X: lc.propagate18(X, *args, substeps=sub))
         return linear(lc.transition(self._F, T))
-
-    def _model_force(self, f_n, lat, h):
-        """Return the specific force (3,) the error model uses: ``f_n`` or its vertical part.
-
-        The horizontal part is dropped when it is within :data:`FORCE_SIGNIFICANCE`
-        sigma of zero, the sigma being what the filter's own tilt and accelerometer
-        variances put on the computed force (module docstring: no information from a
-        product of two errors).
-        """
-        P = self.kf.P
-        g = earth.gravity(lat, h)
-        d = np.diag(P)
-        s2 = g * g * max(d[0], d[1]) + float(np.max(d[self.i_nab]))
-        h2 = f_n[0] ** 2 + f_n[1] ** 2
-        if h2 < FORCE_SIGNIFICANCE ** 2 * s2:
-            # the velocity error the heading error still makes through the dropped force
-            self._unmodelled_acc_var = float(d[2]) * h2
-            return np.array([0.0, 0.0, f_n[2]])
-        self._unmodelled_acc_var = 0.0
-        return f_n
 
     def _interval_ended_bound(self):
         """Hold a linear filter's heading variance within the model's range (module docstring)."""
@@ -320,11 +280,9 @@ class IntegratedNavigation(GnssAidedEngine):
         Qc = np.diag(self.Qc)
         Phi = lc.transition(self._F, T) if self._F is not None else np.eye(self.n)
         Q = 0.5 * (Phi @ Qc @ Phi.T + Qc) * T
-        if self._unmodelled_acc_var > 0.0:
-            # the heading error's velocity error through a dropped horizontal force
-            # (:meth:`_model_force`): noise on the horizontal velocity over the interval
-            k = np.arange(self.n)[self.i_v][:2]
-            Q[k, k] += self._unmodelled_acc_var * T * T
+        E = self._force_noise(T)             # a dropped horizontal force (:mod:`.force`)
+        if E is not None:
+            Q = Q + E
         self.kf.Q = 0.5 * (Q + Q.T)
 
     # -- GNSS epochs --------------------------------------------------------------------

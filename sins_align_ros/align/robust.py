@@ -30,6 +30,7 @@ import numpy as np
 from ..filters.cubature import batched
 from ..filters.vbch import VBCH
 from ..filters.vbckf import VBCKF
+from ..models import large_azimuth as la
 from ..models import large_misalignment as lm
 from ..nav.frames import orthonormalize
 from ..units import DPH, UG
@@ -121,6 +122,12 @@ class RobustAlignment(GnssAidedEngine):
         x = kf.x
         m.C_b_n = orthonormalize(lm.C_n_nprime(x[lm.I_PHI]).T @ m.C_b_n)
         m.correct_velocity(x[lm.I_V].copy())
+        # the residual misalignment error: heading kept, tilts turned by the heading
+        # correction (:func:`~sins_align_ros.models.large_azimuth.reset_jacobian`; the
+        # biases are in body axes)
+        T = np.eye(lm.N_STATES)
+        T[lm.I_PHI, lm.I_PHI] = la.reset_jacobian(x[lm.I_PHI])
+        kf.transform(T)
         kf.x[:6] = 0.0
         if fix is not None:
             m.reset_position(fix.lat, fix.lon, fix.h)

@@ -216,6 +216,32 @@ def propagate_reference(x, f_n, v_n, lat, h, dt, substeps=1, C_b_n=None):
     return x
 
 
+def reset_jacobian(phi_hat):
+    """Return ``J`` (3, 3): the misalignment error after a feedback of ``phi_hat``, ``J dphi``.
+
+    ``C_n^n'(phi) = (I - [t x]) C_z(phi_U)`` (tilts ``t`` applied after the heading,
+    module docstring; seed 004's ``C_y(phi_N) C_x(phi_E) C_z(phi_U)`` is the same to
+    first order in the tilts). Correcting the attitude by
+    ``C_n^n'(phi_hat)^T`` leaves, for ``phi = phi_hat + dphi`` and to first order in
+    ``dphi`` and the tilts, ``C_z(phi_hat_U)^T (I - [dt x]) C_z(phi_hat_U + dphi_U)
+    = (I - [(C_z^T dt) x]) C_z(dphi_U)``: the heading error is unchanged and the tilt
+    errors turn with the heading correction, ``J = C_z(phi_hat_U)^T``.
+
+    Not ``C_n^n'(phi_hat)^T``, which we used before session 23 and which also mixes
+    the heading error into the tilts (and back) by the tilt correction, a product of a
+    correction and an error that the model does not carry. With a MEMS gyro the
+    mechanization's tilts drift 3-5 arcmin between epochs (the drift stays in the
+    filter), so the tilt correction had one sign at every epoch and the mixing built a
+    tilt-heading correlation the data do not have; the well-measured tilt then
+    "measured" the heading through it (seed 000's ship, MEMS, run 1004 of the
+    integrity matrix: the CKF's heading sigma 7 deg at 400 s where a linear covariance
+    recursion of the same F, Q, H and R without the mixing gave 19 deg; the heading
+    ended 28 deg off).
+    """
+    c, s = np.cos(phi_hat[2]), np.sin(phi_hat[2])
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
 def H_position(n_states=N_STATES):
     """Measurement matrix of the GNSS position difference (2, ``n_states``)."""
     H = np.zeros((2, n_states))

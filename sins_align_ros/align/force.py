@@ -1,0 +1,67 @@
+"""Which horizontal specific force a GNSS-aided error model may use.
+
+Used by the navigation filters (:mod:`.navigation`) and seed 000's CKF/ASCKF
+(:mod:`.moving`); not yet by seed 004's VB filters (:mod:`.robust`), see below.
+
+The heading error enters the velocity error only through the horizontal specific force
+(``f_n x phi``; seed 000 eq. 3, seed 004 eq. 3, the navigation filters' F). The models
+take the force the mechanization computed over the interval. On a straight,
+unaccelerated leg the true horizontal force is zero and the computed one is the
+filter's own tilt error times g plus the residual accelerometer bias: its product with
+the heading error is a product of two errors, which a filter must not read as a
+measurement of the heading (the inconsistency observability-constrained EKFs address,
+Huang, Mourikis & Roumeliotis 2008). So the model is given the horizontal force only
+when it is beyond :data:`FORCE_SIGNIFICANCE` sigma of what the filter's own tilt and
+accelerometer-bias variances put on it; otherwise the heading sigma grows with the
+gyro drift, as it should.
+
+What this changed (measured, bench/results/integrity.md and variations*.md):
+
+* The 15/18-state navigation filters (session 22): at 3 sigma a ship with a MEMS IMU
+  turning at 1 deg/s (0.15 m/s^2 of centripetal force against 0.13 of tilt and bias)
+  read the rotating accelerometer bias as heading, the vertical gyro drift estimate
+  walked from +30 to -210 deg/h and the heading ended 15-30 deg off under a 4-6 deg
+  sigma; 5 sigma cured it.
+* Seed 000's CKF/ASCKF (here since session 23): on seed 000's ship with a MEMS IMU
+  (0.01 m/s^2 of acceleration for minutes, 5 mg bias) the model read the bias's
+  0.05 m/s^2 in the computed force as a force: the vertical drift's sigma fell from
+  206 to 87 deg/h where the data cannot find it (a consistent 15-state filter's kept
+  growing with the drift), the estimate walked 3.5 sigma from the truth and the heading
+  ended 30 deg off under a 6 deg sigma (1 run in 10; the cell's heading RMS was twice
+  its mean sigma).
+
+Seed 004's VB filters do not use the rule: tried with the feedback those filters had
+before session 23 (the tilt covariance not turned by the heading correction), their
+MEMS USV cells traded heading for tilt failures (E: 15-18 % of samples outside 3 sigma in
+one run of 10); not re-measured with the corrected feedback.
+
+A dropped force still carries the heading error into the velocity: ``P_psi |f_h|^2``
+(m/s^2)^2 per horizontal axis, which the engine adds to the velocity process noise of
+the interval (times ``T^2``), so the tilt does not take it (a USV in severe sea with a
+MEMS IMU, 40 deg off in heading at the start of fine alignment, otherwise had its tilt
+5 sigma off for a few seconds).
+"""
+import numpy as np
+
+#: the horizontal specific force enters the error model only beyond this many sigma
+FORCE_SIGNIFICANCE = 5.0
+
+
+def model_force(f_n, var_tilt, var_heading, var_bias, g):
+    """Return ``(f_model, acc_var)``: the force (3,) the error model uses and the dropped part's.
+
+    ``f_n`` (3,) the interval's mean computed specific force (ENU, m/s^2); ``var_tilt``
+    the larger of the filter's two tilt variances (rad^2); ``var_heading`` its heading
+    variance (rad^2); ``var_bias`` the largest accelerometer-bias variance of the state
+    ((m/s^2)^2; 0 for a model without one, whose tilt variance carries the bias);
+    ``g`` gravity (m/s^2). ``f_model`` is ``f_n``, or its vertical part alone when the
+    horizontal part is within :data:`FORCE_SIGNIFICANCE` sigma of zero, the sigma being
+    ``sqrt(g^2 var_tilt + var_bias)``; ``acc_var`` is then ``var_heading |f_h|^2``, the
+    variance the heading error puts on each horizontal velocity rate, else 0.
+    """
+    f_n = np.asarray(f_n, dtype=float)
+    s2 = g * g * var_tilt + var_bias
+    h2 = float(f_n[0] ** 2 + f_n[1] ** 2)
+    if h2 < FORCE_SIGNIFICANCE ** 2 * s2:
+        return np.array([0.0, 0.0, f_n[2]]), float(var_heading) * h2
+    return f_n, 0.0
