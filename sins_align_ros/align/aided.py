@@ -15,8 +15,9 @@ predicts without an update, so an outage only widens the covariance.
 :mod:`.navigation`) builds its filter and supplies the hooks ``_transition``,
 ``measurement`` and ``_feedback`` (and optionally ``_correct_imu``,
 ``_set_process_noise``, ``_interval_ended``). Its mixins hold the other jobs: what is
-done to the prior before the first epoch (:class:`PriorShaping`) and the consistency
-monitor's remedies (:class:`ConsistencyRemedies`).
+done to the prior before the first epoch (:class:`PriorShaping`), the consistency
+monitor's remedies (:class:`ConsistencyRemedies`) and which horizontal force the model
+may use (:class:`~.force.ForceModel`).
 """
 import math
 from dataclasses import dataclass
@@ -25,10 +26,9 @@ import numpy as np
 
 from ..filters.cubature import batched
 from ..filters.kf import nis
-from ..nav import earth
 from ..nav.mechanization import MechanizationOptions, Strapdown
 from ..units import DPH, UG
-from .force import model_force
+from .force import ForceModel
 from .gnss_gate import FilterDiverged, GnssGate
 from .heading import LINEAR_MAX, gated_yaw_update, take_heading
 
@@ -266,7 +266,7 @@ class ConsistencyRemedies:
         self.kf.P = P
 
 
-class GnssAidedEngine(PriorShaping, ConsistencyRemedies):
+class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel):
     """Mechanization + error-state filter at GNSS epochs; see the module docstring.
 
     Parameters
@@ -329,9 +329,6 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies):
         #: used by filters that take R from the engine (not ``estimates_R``, not adaptive)
         self.R_scale = np.ones(len(self.R_nominal))
         self.sets_R = not (getattr(kf, 'estimates_R', False) or self.adaptive)
-        #: acceleration variance (m/s^2)^2 the heading error puts on the horizontal velocity
-        #: through a horizontal force the error model dropped (:meth:`_model_force`)
-        self._unmodelled_acc_var = 0.0
 
     # -- IMU rate -------------------------------------------------------------------
     def step_imu(self, dtheta, dv, dt):
@@ -400,9 +397,10 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies):
     def _set_process_noise(self):
         """Set Q of the interval since the last epoch; return what was lent, or None.
 
-        ``diag(Qc) T`` plus a dropped force's velocity noise (:meth:`_force_noise`). An
-        adaptive filter keeps its own Q; the dropped force's part is lent to it for the
-        step and taken back after it (:meth:`_return_process_noise`).
+        ``diag(Qc) T`` plus a dropped force's velocity noise
+        (:meth:`~.force.ForceModel._force_noise`). An adaptive filter keeps its own Q;
+        the dropped force's part is lent to it for the step and taken back after it
+        (:meth:`_return_process_noise`).
         """
         T = max(self.sums.T, 1e-3)
         E = self._force_noise(T)
@@ -417,34 +415,6 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies):
         """Take back the process noise :meth:`_set_process_noise` lent (None: nothing)."""
         if lent is not None:
             self.kf.Q = self.kf.Q - lent
-
-    def _model_force(self, f_n, lat, h):
-        """Return the specific force (3,) the error model uses (:func:`.force.model_force`).
-
-        ``f_n`` (3,) the interval's mean force as the model takes it (ENU, m/s^2); the
-        sigma is the filter's own tilt and accelerometer-bias variances'. A dropped
-        force's heading variance is kept for :meth:`_force_noise`.
-        """
-        d = np.diag(self.kf.P)
-        k = np.arange(len(d))[self.i_phi]
-        var_bias = 0.0 if self.i_nab is None else float(np.max(d[self.i_nab]))
-        f, self._unmodelled_acc_var = model_force(
-            f_n, max(d[k[0]], d[k[1]]), d[k[2]], var_bias, earth.gravity(lat, h))
-        return f
-
-    def _force_noise(self, T):
-        """Velocity process noise (n, n) of a force dropped over ``T`` s, or None.
-
-        The heading error's velocity error through the dropped force,
-        ``P_psi |f_h|^2 T^2`` on each horizontal velocity (:mod:`.force`).
-        """
-        if self._unmodelled_acc_var <= 0.0:
-            return None
-        n = len(self.kf.x)
-        k = np.arange(n)[self.i_v][:2]
-        E = np.zeros((n, n))
-        E[k, k] = self._unmodelled_acc_var * T * T
-        return E
 
     def _restart_interval(self):
         self._interval_ended(self.sums.T)

@@ -43,6 +43,8 @@ MEMS IMU, 40 deg off in heading at the start of fine alignment, otherwise had it
 """
 import numpy as np
 
+from ..nav import earth
+
 #: the horizontal specific force enters the error model only beyond this many sigma
 FORCE_SIGNIFICANCE = 5.0
 
@@ -65,3 +67,43 @@ def model_force(f_n, var_tilt, var_heading, var_bias, g):
     if h2 < FORCE_SIGNIFICANCE ** 2 * s2:
         return np.array([0.0, 0.0, f_n[2]]), float(var_heading) * h2
     return f_n, 0.0
+
+
+class ForceModel:
+    """The rule above for an engine: a mixin of :class:`~.aided.GnssAidedEngine`.
+
+    Uses the engine's ``kf`` and its ``i_phi``, ``i_v`` and ``i_nab`` slices; keeps
+    ``_unmodelled_acc_var`` for the interval's process noise.
+    """
+
+    #: acceleration variance (m/s^2)^2 the heading error puts on the horizontal velocity
+    #: through a horizontal force the error model dropped (:meth:`_model_force`)
+    _unmodelled_acc_var = 0.0
+
+    def _model_force(self, f_n, lat, h):
+        """Return the specific force (3,) the error model uses (:func:`model_force`).
+
+        ``f_n`` (3,) the interval's mean force as the model takes it (ENU, m/s^2); the
+        sigma is the filter's own tilt and accelerometer-bias variances'. A dropped
+        force's heading variance is kept for :meth:`_force_noise`.
+        """
+        d = np.diag(self.kf.P)
+        k = np.arange(len(d))[self.i_phi]
+        var_bias = 0.0 if self.i_nab is None else float(np.max(d[self.i_nab]))
+        f, self._unmodelled_acc_var = model_force(
+            f_n, max(d[k[0]], d[k[1]]), d[k[2]], var_bias, earth.gravity(lat, h))
+        return f
+
+    def _force_noise(self, T):
+        """Velocity process noise (n, n) of a force dropped over ``T`` s, or None.
+
+        The heading error's velocity error through the dropped force,
+        ``P_psi |f_h|^2 T^2`` on each horizontal velocity (:mod:`.force`).
+        """
+        if self._unmodelled_acc_var <= 0.0:
+            return None
+        n = len(self.kf.x)
+        k = np.arange(n)[self.i_v][:2]
+        E = np.zeros((n, n))
+        E[k, k] = self._unmodelled_acc_var * T * T
+        return E
