@@ -25,6 +25,7 @@ from collections import deque
 
 from geometry_msgs.msg import TwistWithCovarianceStamped
 from nav_msgs.msg import Odometry
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
@@ -61,11 +62,13 @@ PARAMS = (
     Param('gnss_frame_id', 'gnss_link', 'frame_id of gnss/fix and gnss/vel', read_only=True),
     Param('world_frame_id', 'enu', 'frame_id of sim/truth (local ENU at the start position)',
           read_only=True),
-    Param('shutdown_when_done', False, 'exit after the last sample'),
+    Param('shutdown_when_done', False,
+          'exit after the last sample, once reliable subscribers acknowledged it (at most 5 s)'),
 )
 
 _BLOCK_S = 1.0   # seconds of data generated per block
 _TICK_S = 0.005  # publishing timer period (wall time)
+_DRAIN_S = 5.0   # at most this long waiting for acknowledgements before exiting
 
 
 class SimulatorNode(Node):
@@ -182,10 +185,25 @@ class SimulatorNode(Node):
             self.pub_clock.publish(Clock(clock=ns_to_stamp(self.t0_ns + sec_to_ns(last_t))))
 
     def _finish(self):
-        self.done = True
         self.timer.cancel()
         self.get_logger().info(f'scenario finished after {self._k} IMU samples '
                                f'({self._k * self.dt:.1f} s)')
+        if self.shutdown_when_done:
+            self._drain()
+        self.done = True
+
+    def _drain(self, timeout_s=_DRAIN_S):
+        """Wait until every reliable subscriber acknowledged what we published.
+
+        The process exits right after the last sample when ``shutdown_when_done`` is set; without
+        this, the last messages still in the writer's history die with it.
+        """
+        pubs = (self.pub_imu, self.pub_fix, self.pub_vel, self.pub_truth, self.pub_clock)
+        late = [p.topic_name for p in pubs
+                if not p.wait_for_all_acked(Duration(seconds=timeout_s))]
+        if late:
+            self.get_logger().warn(f'exiting with messages unacknowledged after {timeout_s:.0f} s '
+                                   f'on {", ".join(late)}')
 
     def _publish_imu(self, stamp, dtheta, dv):
         m = Imu()
