@@ -162,6 +162,19 @@ def test_student_t_scale_keeps_an_outlier_from_moving_the_state():
     assert lam_n > 0.7 and x_nt[0] == pytest.approx(x_n[0], rel=0.05)
 
 
+def test_student_t_scale_never_tightens_a_quiet_epoch():
+    """A zero innovation: the plug-in scale would be (dof + m) / dof = 1.2 and shrink R;
+    capped at 1, the posterior is the plain VB one (the R estimate alone follows)."""
+    xp, Pp, H = np.zeros(2), np.diag([1.0, 1.0]), np.array([[1.0, 0.0]])
+    a, b = np.array([50.0]), np.array([50.0])           # R = 1
+    z = np.zeros(1)
+    _, P_plain, *_ = vb_update(xp, Pp, z, H, a, b, 20)
+    _, P_t, _, _, _, lam = vb_update(xp, Pp, z, H, a, b, 20, dof=5.0)
+    assert lam == 1.0
+    np.testing.assert_allclose(P_t, P_plain, rtol=1e-12)
+    assert P_t[0, 0] > 0.45                              # 1 / (1 + 1 / R), R near 1
+
+
 @pytest.mark.parametrize('fine_filter', ['vbckf', 'vbch'])
 def test_pipeline_aligns_the_usv_in_severe_sea_with_outliers(fine_filter):
     """seed004_high (severe sea, GNSS outliers, coarse first) through the whole pipeline:

@@ -22,6 +22,12 @@ grade, 20 seeds; at most 26 / 48 deg). The filter is given at most 45 deg and th
 published heading variance puts the coarse prior back in information form
 (:func:`~.aided.capped_heading_prior`, shared with seed 000's family;
 ``bench/results/severe_sea_presets.md``).
+
+Also not in the seed: the model takes the horizontal specific force only where it is
+significant against the filter's own tilt and bias errors (:mod:`.force`; eq. 3's
+``f_n x phi`` otherwise reads those errors as heading), and a feedback leaves the
+misalignment's error as :func:`~sins_align_ros.models.large_azimuth.reset_jacobian`
+says (the seed does not say what its feedback does to P).
 """
 import math
 
@@ -99,6 +105,7 @@ class RobustAlignment(GnssAidedEngine):
             return batched(lambda X: X)
         f_n, v_n, C = s.dv_sum / T, s.v_sum / T, s.C_sum / T
         lat, h = self.mech.lat, self.mech.h
+        f_n = self._model_force(f_n, lat, h)
         sub = max(1, int(math.ceil(T / 1.0)))
         return batched(lambda X: lm.propagate(X, f_n, v_n, C, lat, h, T, substeps=sub))
 

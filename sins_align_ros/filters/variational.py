@@ -32,6 +32,13 @@ Where we differ from the box, and why:
   (Student-t measurement noise), estimated in the same fixed-point iterations,
   ``lam = (dof + m) / (dof + sum((r^2 + diag(H P H^T)) / R))``; an outlier epoch gets
   ``lam << 1`` and hardly moves the state or the R estimate. ``dof`` None: the seed.
+  The scale is capped at 1: only down-weighting. The plug-in estimate exceeds 1 on
+  every quiet epoch (up to ``(dof + m) / dof``, 1.4 with the node's ``dof`` = 7), which
+  treats the measurement as more precise than the R estimate, while the R estimate
+  already follows the quiet epochs; the posterior covariance then ignores the scale's
+  own uncertainty. Measured on seed 004's USV (navigation grade, 10 seeds): the heading
+  z-score's RMS over the first 40 s of fine alignment fell from 1.3 to 1.15, and the
+  one run with its heading 8 % of the time outside 3 sigma went to 2 %.
 * The prior (:func:`prior_alpha`): ``alpha0 = 0.5 / (1 - rho)`` (the stationary value
   of the forgetting recursion ``alpha <- rho alpha + 1/2``) and ``beta0 = alpha0 R0``:
   the nominal R counts as one memory's worth of measurements.
@@ -104,7 +111,7 @@ def vb_update(xp, Pp, z, H, alpha, beta, n_iter, L=None, C=None, var_max=None, d
         r = z - H @ x
         e2 = r ** 2 + np.einsum('ij,jk,ik->i', H, P, H)
         if dof is not None:
-            lam = (dof + m) / (dof + float(np.sum(e2 / R)))
+            lam = min(1.0, (dof + m) / (dof + float(np.sum(e2 / R))))
         if L is not None:
             gamma2 = robust_gamma2(P, L, float(y0 @ np.linalg.solve(S, y0)), C)
             P = hinf_posterior(P, L, gamma2)
