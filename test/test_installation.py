@@ -6,7 +6,7 @@ from sins_align_ros.align import params as prm
 from sins_align_ros.align.aided import GnssFix
 from sins_align_ros.align.installation import Installation
 from sins_align_ros.eval.run import run_pipeline, run_scenario
-from sins_align_ros.eval.scenarios import simulate
+from sins_align_ros.eval.scenarios import named, simulate
 from sins_align_ros.nav import coarse, earth
 from sins_align_ros.nav.frames import euler_rates_to_w_nb_b, euler_to_dcm
 from sins_align_ros.sim.presets import (MAST_LEVER_ARM_M, ROBOT_IMU_MOUNTING_RPY_DEG,
@@ -118,12 +118,56 @@ def test_mast_antenna_aligns_as_well_as_a_co_located_one(flt):
 
 
 def test_ignoring_the_mast_costs_the_heading():
-    """Told no arm, the sway of an 18 m mast reads as velocity noise and turns the heading.
-
-    (Seed 1000: 4.6' off told no arm, 1.4' told the arm.)
-    """
-    run = run_scenario('ship_underway_mast', 1000, 'kf', gnss_lever_arm_m=(0.0, 0.0, 0.0))
+    """Told no arm and the self-check off, the sway of an 18 m mast reads as velocity noise
+    and turns the heading. (Seed 1000: 4.6' off told no arm, 1.4' told the arm.)"""
+    run = run_scenario('ship_underway_mast', 1000, 'kf', gnss_lever_arm_m=(0.0, 0.0, 0.0),
+                       sensor_self_check=False)
     assert abs(run.final.euler[2]) > 3.0 * ARCMIN
+
+
+def test_the_self_check_finds_an_untold_mast_and_uses_it():
+    """Told no arm, the coarse window's velocities show the mast (align/arm_check.py):
+    its arm replaces the configured one and the attitude is as good as told it. (Without
+    the fit: heading 4.7' off, tilt 0.86' under a 0.05' sigma, 17 sigma.)"""
+    told = run_scenario('ship_underway_mast', 1000, 'kf')
+    run = run_scenario('ship_underway_mast', 1000, 'kf', gnss_lever_arm_m=(0.0, 0.0, 0.0))
+    p = run.pipeline
+    np.testing.assert_allclose(p.cfg['gnss_lever_arm_m'], MAST_LEVER_ARM_M, atol=0.5)
+    assert p.install.l_v == pytest.approx(p.cfg['gnss_lever_arm_m'])
+    assert any('gnss_lever_arm_m set to the fit' in w for w in p.warnings)
+    s = p.status()                                       # what /diagnostics shows
+    assert 'gnss_lever_arm_m=[' in s['self_check_widened']
+    assert s['self_check_gnss_lever_arm_chi2'] > 1000.0
+    f = run.final
+    assert p.phase == 'aligned'
+    assert np.all(np.abs(f.euler) <= 3.0 * f.sigma)
+    assert np.all(np.abs(f.euler[:2]) < 0.1 * ARCMIN)
+    assert abs(f.euler[2]) < abs(told.final.euler[2]) + 0.5 * ARCMIN
+
+
+@pytest.mark.parametrize('name, seed, arm', [
+    ('ship_underway', 1001, (0.0, 0.0, 0.0)), ('ship_underway_mast', 1001, MAST_LEVER_ARM_M),
+    ('seed003_car', 1000, (0.0, 0.0, 0.0)), ('seed004_medium', 1005, (0.0, 0.0, 0.0))])
+def test_a_right_arm_is_left_alone(name, seed, arm):
+    """No antenna offset, or the right one told: the fit finds nothing (a chi-square of a
+    few against the 50 that replaces the arm), on a ship, a car and a USV in severe sea
+    with GNSS outliers."""
+    run = run_scenario(name, seed, 'kf', duration=70.0, gnss_lever_arm_m=arm)
+    p = run.pipeline
+    assert p.cfg['gnss_lever_arm_m'] == tuple(arm)
+    assert p.check.figures['gnss_lever_arm_chi2'] < 10.0
+
+
+def test_a_mast_straight_up_takes_the_antenna_above_the_imu():
+    """An arm along the mast alone: the horizontal velocities cannot tell +18 m from -18 m
+    (with the heading half a turn away), nor the vertical ones (a vertical arm moves the
+    antenna sideways): the fit takes the antenna above the IMU."""
+    sc = named('ship_underway_mast', 70.0)
+    sc.gnss_lever_arm_m = (0.0, 0.0, 18.0)
+    run = run_scenario(sc, 1000, 'kf', gnss_lever_arm_m=(0.0, 0.0, 0.0))
+    p = run.pipeline
+    np.testing.assert_allclose(p.cfg['gnss_lever_arm_m'], (0.0, 0.0, 18.0), atol=0.5)
+    assert any('antenna above the IMU' in w for w in p.warnings)
 
 
 def test_a_moored_ship_with_a_mast_antenna_is_not_taken_for_moving():

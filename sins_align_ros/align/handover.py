@@ -34,7 +34,8 @@ class FineStart:
     ``position_source``; ``check``: the self-check's result or None; ``coarse_info``:
     the coarse stage's diagnostics; ``heading_measured``: an external heading set the
     coarse heading; ``warnings``: what the user should be told; ``fine``: the running
-    :class:`~.fine_stage.FineStage`.
+    :class:`~.fine_stage.FineStage`; ``install``: the
+    :class:`~.installation.Installation`, its lever arm the self-check's where it found one.
     """
 
     cfg: dict
@@ -47,6 +48,7 @@ class FineStart:
     heading_measured: bool
     warnings: list
     fine: FineStage
+    install: object
 
 
 def hand_over(window, cfg, noise, clock, gnss, headings, install):
@@ -75,6 +77,8 @@ def hand_over(window, cfg, noise, clock, gnss, headings, install):
         if check.widened:
             cfg.update(check.widened)
             noise = noise_spec(cfg)
+        if 'gnss_lever_arm_m' in check.widened:
+            install = install.with_lever_arm(cfg['gnss_lever_arm_m'])
         warnings.extend(check.findings)
         warning = self_check.heading_warning(check, at_rest, aided)
         if warning and not headings.latest(clock.t_last):
@@ -93,7 +97,7 @@ def hand_over(window, cfg, noise, clock, gnss, headings, install):
                                            heading_measured, clock, install, headings)
     warnings.extend(engine_warnings)
     return FineStart(cfg, noise, aided, position, position_source, check, coarse_info,
-                     heading_measured, warnings, fine), None
+                     heading_measured, warnings, fine, install), None
 
 
 def fine_stage_for(start, cfg, noise, with_velocity, heading_known, heading_measured, clock,

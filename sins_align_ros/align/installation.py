@@ -31,6 +31,7 @@ accelerations anyway.
 """
 import math
 from collections import deque
+from copy import copy
 from dataclasses import replace
 
 import numpy as np
@@ -70,6 +71,19 @@ class Installation:
     def from_params(cls, cfg):
         """Build from ``gnss_lever_arm_m`` and ``imu_mounting_rpy_deg`` of ``cfg``."""
         return cls(cfg['gnss_lever_arm_m'], cfg['imu_mounting_rpy_deg'])
+
+    def with_lever_arm(self, lever_arm_m):
+        """Return this installation with the lever arm ``lever_arm_m`` (3,) m (self if same).
+
+        The mounting rotation and the recorded arm speeds are shared.
+        """
+        l_v = np.asarray(lever_arm_m, dtype=float).reshape(3)
+        if np.array_equal(l_v, self.l_v):
+            return self
+        other = copy(self)
+        other.l_v = l_v
+        other.no_arm = not np.any(l_v)
+        return other
 
     # -- the IMU -------------------------------------------------------------------------
     def to_vehicle(self, x_s):

@@ -80,6 +80,7 @@ class AlignmentPipeline:
         self.check = None
         self.cfg = dict(self.configured)
         self.noise = noise_spec(self.cfg)
+        self.install = self.install.with_lever_arm(self.cfg['gnss_lever_arm_m'])
         #: the fine filter is GNSS-aided (it runs on a moving base); with ``auto``, decided
         #: when coarse alignment ends
         self.aided = is_aided(self.cfg['fine_filter'])
@@ -320,6 +321,7 @@ class AlignmentPipeline:
         self.heading_measured = start.heading_measured
         self.warnings.extend(start.warnings)
         self.fine = start.fine
+        self.install = start.install
         # fixes that came in during coarse alignment are history, not measurements
         self.gnss.pending.clear()
 

@@ -40,8 +40,9 @@ def pipeline_status(p):
         s['self_check_still'] = p.check.still
         s['self_check_note'] = p.check.note
         s['self_check_widened'] = ' '.join(
-            f'{k}={v}' if isinstance(v, bool) else f'{k}={v:.4g}'
-            for k, v in p.check.widened.items())
+            f'{k}={v}' if isinstance(v, bool) else
+            f'{k}=[{", ".join(f"{x:.4g}" for x in v)}]' if isinstance(v, tuple) else
+            f'{k}={v:.4g}' for k, v in p.check.widened.items())
         s.update({f'self_check_{k}': float(v) for k, v in p.check.figures.items()})
     s.update(expectation.figures(p.expectation(), None if fine is None else fine.mech.C_b_n))
     return s

@@ -44,6 +44,11 @@ the finding is reported:
   :data:`NOISE_RATIO` times the configured (or the receiver's reported) sigma, the
   sigma is widened to it (and reported covariances, then shown to be too small, are
   no longer used). On a still base and on a moving one alike.
+* **GNSS lever arm**: the velocities are fitted to the IMU's view of the motion and an
+  antenna lever arm (:mod:`.arm_check`); an arm the data show beyond :data:`ARM_CHI2`
+  replaces the configured ``gnss_lever_arm_m`` (a mast-top antenna left untold otherwise
+  sways at a metre per second in phase with the roll, and the filters read that as tilt),
+  and the velocity noise counts what the fit leaves of it.
 * **Base velocity at rest** (the zero-velocity measurement): the specific force
   integrated in the initial body frame, levelled, less its best quadratic over each
   :data:`VELOCITY_CHUNK_S` seconds, is the velocity the base really has (sway, heave,
@@ -66,6 +71,7 @@ import numpy as np
 from ..nav import earth
 from ..nav.coarse import arm_velocity_b0, detect_motion, velocity_integral_b0
 from ..units import DPH, DPSH, UG
+from .arm_check import fit_lever_arm, levelling
 from .factory import gnss_sigma, uses_reported_covariance
 
 #: a noise estimate widens the configured density when it is this many times larger
@@ -101,6 +107,9 @@ VELOCITY_CHUNK_S = 10.0
 COHERENCE_SIGMAS = 4.5
 #: order of the differences of :func:`difference_density`
 DIFF_ORDER = 3
+#: a lever arm fit beyond this chi-square (3 degrees of freedom, about 6 sigma; no-arm
+#: ships, USVs and cars with the arm right give 1-5) replaces the configured arm
+ARM_CHI2 = 50.0
 #: a gyro bias sigma above this fraction of the horizontal Earth rate: no heading at rest
 HEADING_BIAS_FRACTION = 0.5
 #: the reason given when the heading cannot be found at rest
@@ -260,11 +269,51 @@ def gnss_check(out, gnss, t0, t1, cfg, window=None):
     vels = [v for v in gnss.vels if t0 <= v[0] <= t1]
     if len(vels) >= 10 and _regular([v[0] for v in vels]):
         V = np.array([v[1] for v in vels])
+        t_v = np.array([v[0] for v in vels])
         sigma = robust_difference_sigma(V[:, :2])
         if window is not None:
-            sigma = min(sigma, motion_free_velocity_sigma(np.array([v[0] for v in vels]), V,
-                                                          window, cfg['gnss_lever_arm_m']))
+            arm, arm_sigma = _lever_arm(out, cfg, t_v, V, window)
+            sigma = min(sigma, math.hypot(motion_free_velocity_sigma(t_v, V, window, arm),
+                                          arm_sigma))
         _gnss_sigma(out, cfg, 'gnss_vel_sigma_mps', sigma, vel_reported, 'm/s')
+
+
+def _lever_arm(out, cfg, t_v, V, window):
+    """Check the configured lever arm against the velocities (:mod:`.arm_check`).
+
+    Returns the arm to use (3,) m and the velocity 1-sigma (m/s) its uncertainty leaves.
+    An arm beyond :data:`ARM_CHI2` replaces the configured one (``out.widened``); where
+    its sign is ambiguous (the fit's ``-delta`` is as good) the antenna is taken above
+    the IMU if the vertical part is beyond 3 sigma, else the finding only asks for it.
+    """
+    configured = np.asarray(cfg['gnss_lever_arm_m'], dtype=float)
+    fit = fit_lever_arm(t_v, V, window, configured)
+    if fit is None:
+        return configured, 0.0
+    out.figures['gnss_lever_arm_chi2'] = fit.chi2
+    if not fit.chi2 > ARM_CHI2:
+        return configured, 0.0
+    arm = configured + fit.delta
+    sd = np.sqrt(np.diag(fit.cov))
+    shown = ', '.join(f'{x:.1f}' for x in arm)
+    told = ', '.join(f'{x:.1f}' for x in configured)
+    if fit.ambiguous:
+        if abs(arm[2]) <= 3.0 * sd[2]:
+            out.findings.append(
+                f'GNSS velocities sway with the body\'s rotation as from an antenna at '
+                f'+-[{shown}] m from the IMU (FLU; the sign cannot be told from this motion), '
+                f'configured [{told}]: set gnss_lever_arm_m; until then the sway counts as '
+                f'GNSS velocity noise')
+            return configured, 0.0
+        arm = arm if arm[2] > 0.0 else -arm           # the antenna above the IMU
+        shown = ', '.join(f'{x:.1f}' for x in arm)
+    out.widened['gnss_lever_arm_m'] = tuple(float(round(x, 2)) for x in arm)
+    out.findings.append(
+        f'GNSS velocities sway with the body\'s rotation as from an antenna at [{shown}] m '
+        f'from the IMU (FLU, +-{np.max(sd):.2f} m), configured [{told}]: gnss_lever_arm_m '
+        f'set to the fit' + (' (its sign taken with the antenna above the IMU)'
+                             if fit.ambiguous else ''))
+    return arm, fit.rate_rms * math.sqrt(float(np.trace(fit.cov)))
 
 
 def motion_free_velocity_sigma(t_v, V, window, arm_b=None):
@@ -300,7 +349,7 @@ def motion_free_velocity_sigma(t_v, V, window, arm_b=None):
         u_b0 = u_b0 + arm_velocity_b0(C_bb0, dth, dts, np.asarray(arm_b, dtype=float))
     t = t_v[inside]
     U = np.column_stack([np.interp(t, tt, u_b0[:, i]) for i in range(3)])
-    U_h = (U @ _levelling(U[-1] - U[0]).T)[:, :2]
+    U_h = (U @ levelling(U[-1] - U[0]).T)[:, :2]
     V_h = V[inside, :2]
     a = np.diff(U_h, n=DIFF_ORDER, axis=0)
     b = np.diff(V_h, n=DIFF_ORDER, axis=0)
@@ -324,14 +373,6 @@ def motion_free_velocity_sigma(t_v, V, window, arm_b=None):
         s = np.median(np.abs(d[~spoilt]), axis=0) / 0.6745
     s = s / math.sqrt(6.0)
     return float(np.sqrt(np.mean(s * s)))
-
-
-def _levelling(up_b0):
-    """Rotation (3, 3) that takes the direction ``up_b0`` (3,) to the z axis."""
-    z = up_b0 / np.linalg.norm(up_b0)
-    x = np.cross([0.0, 1.0, 0.0], z) if abs(z[1]) < 0.9 else np.cross([1.0, 0.0, 0.0], z)
-    x /= np.linalg.norm(x)
-    return np.array([x, np.cross(z, x), z])
 
 
 def _gnss_sigma(out, cfg, name, sigma, reported, unit):
