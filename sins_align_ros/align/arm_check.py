@@ -80,18 +80,16 @@ def _rotation(psi):
     return np.array([[c, s], [-s, c]])
 
 
-def _design(e, B, w_up=0.0):
+def _design(e, B):
     """Second differences of the residual ``e`` (N, 3) and the basis ``B`` (N, 3, 3).
 
-    Returns ``d`` (k (N-2),) and ``D`` (k (N-2), 3): the east rows, the north rows and,
-    with ``w_up`` > 0, the up rows times ``w_up`` (k = 3; else k = 2).
+    Returns ``d`` (3 (N-2),) and ``D`` (3 (N-2), 3): the east rows, the north rows and
+    the up rows times :data:`UP_WEIGHT`.
     """
-    d = np.diff(e, n=2, axis=0)
-    D = np.diff(B, n=2, axis=0)
-    axes = (0, 1, 2) if w_up > 0.0 else (0, 1)
-    w = (1.0, 1.0, w_up)
-    return (np.concatenate([w[a] * d[:, a] for a in axes]),
-            np.vstack([w[a] * D[:, a, :] for a in axes]))
+    w = (1.0, 1.0, UP_WEIGHT)
+    d = np.diff(e, n=2, axis=0) * w
+    D = np.diff(B, n=2, axis=0) * np.array(w)[:, None]
+    return d.T.reshape(-1), np.vstack([D[:, a, :] for a in range(3)])
 
 
 def _clipped_fit(d, D):
@@ -149,15 +147,15 @@ def fit_lever_arm(t_v, V, window, arm_b):
         R3[:2, :2] = _rotation(psi)
         return V - U_l @ R3, np.einsum('nak,ab->nbk', B0, R3)
 
-    if np.linalg.matrix_rank(_design(*rotated(0.0), UP_WEIGHT)[1]) < 3:
+    if np.linalg.matrix_rank(_design(*rotated(0.0))[1]) < 3:
         return None
     grid = np.radians(np.arange(0.0, 360.0, GRID_DEG))
-    fits = [_clipped_fit(*_design(*rotated(psi), UP_WEIGHT)) for psi in grid]
+    fits = [_clipped_fit(*_design(*rotated(psi))) for psi in grid]
     k = int(np.argmin([f[1] for f in fits]))
     k_opp = (k + len(grid) // 2) % len(grid)
     ambiguous = fits[k_opp][1] < AMBIGUITY_RATIO * fits[k][1]
     e, B = rotated(grid[k])
-    d, D = _design(e, B, UP_WEIGHT)
+    d, D = _design(e, B)
     m = len(d) // 3
     r = d - D @ fits[k][0]
     s = np.median(np.abs(r[:2 * m])) / 0.6745
