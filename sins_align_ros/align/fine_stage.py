@@ -372,8 +372,8 @@ class FineStage:
                 # the measurement-noise remedy only where the engine sets R (the
                 # adaptive filters estimate it themselves)
                 factor = self.consistency.add(eng.last_nis, eng.last_dof, eng.last_u,
-                                              eng.last_rows if eng.sets_R else None,
-                                              rejected=bool(eng.kf.rejected))
+                                              eng.last_rows, rejected=bool(eng.kf.rejected),
+                                              noise_remedy=eng.sets_R)
                 if factor is not None:
                     eng.inflate(factor)
                 if self.consistency.r_factors:
