@@ -218,25 +218,22 @@ def _feed_until_verdict(mon, u, **kw):
     return f
 
 
-def test_an_excess_spread_over_white_rows_is_put_on_the_noise():
-    mon = ConsistencyMonitor()
-    assert _feed_until_verdict(mon, _spread_excess(True)) is None
-    assert not mon.consistent and mon.n_inflations == 0 and mon.n_r_inflations == 1
-    assert mon.r_factors == pytest.approx({0: 2.56, 1: 2.56, 2: 2.56})
-
-
-def test_an_excess_spread_over_persisting_rows_inflates_the_state():
-    mon = ConsistencyMonitor()
-    assert _feed_until_verdict(mon, _spread_excess(False)) == pytest.approx(2.56)
-    assert mon.n_inflations == 1 and not mon.r_factors
+def test_an_excess_spread_over_rows_none_fails_alone_inflates_the_state():
+    for white in (True, False):
+        mon = ConsistencyMonitor()
+        assert _feed_until_verdict(mon, _spread_excess(white)) == pytest.approx(2.56)
+        assert mon.n_inflations == 1 and not mon.r_factors
 
 
 def test_white_failures_of_a_filter_estimating_R_inflate_nothing():
-    mon = ConsistencyMonitor()
-    assert _feed_until_verdict(mon, _spread_excess(True), noise_remedy=False) is None
-    assert not mon.consistent and not mon.r_factors
-    assert mon.n_inflations == 0 and mon.n_r_inflations == 0
-    assert mon.status()['consistency_white_failures'] == 1
+    for u in (_spread_excess(True), _epochs(np.random.default_rng(11), WINDOW, 3.0, -0.3)):
+        mon = ConsistencyMonitor()
+        rows = np.arange(u.shape[1])
+        for v in u:
+            f = mon.add(float(v @ v), len(v), v, rows, noise_remedy=False)
+        assert f is None and not mon.consistent and not mon.r_factors
+        assert mon.n_inflations == 0 and mon.n_r_inflations == 0
+        assert mon.status()['consistency_white_failures'] == 1
     # a model error still inflates its state
     mon = ConsistencyMonitor()
     assert _feed_until_verdict(mon, _spread_excess(False), noise_remedy=False) is not None

@@ -60,6 +60,28 @@ def test_sage_husa_updates_only_the_measured_block_and_respects_its_ceiling():
     assert np.linalg.eigvalsh(R[:2, :2]).max() <= 100.0 * np.trace(R0) / 4 * (1 + 1e-12)
 
 
+def test_sage_husa_takes_a_lent_variance_for_state_uncertainty_not_for_noise():
+    """A variance lent for the epoch (a lever arm's share of the attitude uncertainty) is
+    taken out of the innovation like H P H^T: the estimate stays the receiver's, and a row
+    the loan dominates is not identifiable."""
+    R0 = np.diag([1.0, 1.0])
+
+    def update(y, lent, **kw):
+        """One update of a fresh estimator weighing the epoch fully (d = 1)."""
+        upd = CubatureUpdate(y=np.array(y), z_pred=np.zeros(2), Pzz=np.eye(2) * 4.0,
+                             Pxz=np.zeros((2, 2)), K=np.zeros((2, 2)), eta=np.zeros((2, 2)),
+                             chi=np.zeros((2, 4)))
+        sh = SageHusa(np.eye(2), R0, b=0.5, gate=False, adapt_q=False, r_ceiling=100.0,
+                      prior_epochs=0.0, **kw)
+        return sh.update(upd, lent=np.array(lent))[1]
+
+    R = update([2.0, 2.0], [0.0, 1.5], r_when_identifiable=True)
+    assert R[0, 0] == pytest.approx(4.0)              # row 0: all of y^2 is the noise
+    assert R[1, 1] == 1.0                             # row 1: the loan dominates, untouched
+    R = update([2.0, 0.0], [1.5, 0.0])                # eq. 39 on the block
+    assert R[0, 0] == pytest.approx(2.5) and R[0, 1] == 0.0
+
+
 def test_asckf_subset_update_with_all_rows_equals_the_full_update():
     rng = np.random.default_rng(5)
     P0 = np.diag([1.0, 2.0, 0.5])

@@ -491,27 +491,24 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel):
         return upd
 
     def _lend_arm_noise(self, fix):
-        """Add a lever arm's variance to an adaptive filter's R for one epoch (or None).
+        """Lend a lever arm's variance to an adaptive filter's R for one epoch (or None).
 
         The filters that set R take ``fix.arm_var`` into it above; a Sage-Husa filter's R
-        is its estimate, so the known part is lent for the update and taken back after it
-        (:meth:`_return_arm_noise`): the estimator learns the noise beyond it. (The
-        variational-Bayes filters' R is their posterior; they learn the arm's noise.)
+        is its estimate, so the known part is lent (``kf.R_lent``): the update uses it on
+        top of the estimate, the estimator takes it out of the innovations and does not
+        count it as the receiver's noise, and :meth:`_return_arm_noise` ends the loan.
+        (The variational-Bayes filters' R is their posterior; they learn the arm's noise.)
         """
         if fix.arm_var is None or self.sets_R or self.use_reported_cov or getattr(
                 self.kf, 'estimates_R', False):
             return None
         arm = fix.arm_var[self.MEAS_ENU]
-        self.kf.R = self.kf.R + np.diag(arm)
+        self.kf.R_lent = arm
         return arm
 
     def _return_arm_noise(self, arm):
-        """Take back what :meth:`_lend_arm_noise` lent, keeping the diagonal positive."""
-        R = self.kf.R
-        d = np.diag(R)
-        R = R - np.diag(arm)
-        R[np.diag_indices(len(R))] = np.maximum(np.diag(R), 1e-3 * (d - arm).clip(0) + 1e-12)
-        self.kf.R = R
+        """End the loan of :meth:`_lend_arm_noise`."""
+        self.kf.R_lent = None
 
     # -- external heading -------------------------------------------------------------
     def update_heading(self, fix, t_now, w_up=0.0):

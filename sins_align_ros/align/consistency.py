@@ -32,21 +32,25 @@ ones when the filter follows the noisy fixes. When every row that fails its own
 chi-square test has a lag-1 correlation below :data:`MODEL_LAG1` over its last
 :data:`HISTORY` epochs, the remedy is to inflate those rows' measurement noise
 (:attr:`ConsistencyMonitor.r_factors`) and the state covariance is left alone; otherwise
-the state covariance is inflated as above. A window can fail with no row failing alone
-(a moderate excess spread over the rows); it is then put down to the noise when every
-row's innovations are white, each row's noise inflated by its own mean square (at least
-1). For a filter that estimates R itself (the VB family, ASCKF's Sage-Husa: ``add``'s
-``noise_remedy`` False) a white failure inflates nothing: its R estimate is the remedy,
-and a state inflation would widen for good the directions a still base cannot observe
-(seed 002's tilt / accelerometer-bias split; VBCKF on a still tactical IMU, where
-NIS/dof averaged 1.08 but windows failed about once a run, ended with a tilt sigma 1.5x
-CKF's); the test still fails (``aligned`` waits) and it is counted
-(``consistency_white_failures``). After every window of consecutive passing
-tests the raised process noise is halved back towards the model's (:attr:`relax`): an
-inflation answers a manoeuvre or a spell of bad data, not the rest of the run (kept up,
-it made MVBAKF's inverse-Wishart prior, and the KF's heading, grow without bound).
-Inflating the state for a GNSS noise mismatch (a default height sigma of 2 m against a
-5 m receiver) would let every epoch pull the attitude, and repeated, destroys it.
+the state covariance is inflated as above (also when no row fails alone). For a filter
+whose R is its own variational posterior (the VB family: ``add``'s ``noise_remedy``
+False) a white failure inflates nothing, also one with no row failing alone (a moderate
+excess spread over white rows): its R estimate is the remedy, and a state inflation
+would widen for good the directions a still base cannot observe (seed 002's tilt /
+accelerometer-bias split; VBCKF on a still tactical IMU, where NIS/dof averaged 1.08 but
+windows failed about once a run, ended with a tilt sigma 1.5x CKF's); the test still
+fails (``aligned`` waits) and it is counted (``consistency_white_failures``). ASCKF's
+Sage-Husa R learns only on epochs where R dominates the innovation covariance, too
+slowly to answer a spell of white excess: its failures all inflate the state (on
+ship_underway, 10 seeds, leaving them to its R cost one run its end inside 3 sigma and
+made one silent-wrong).
+
+After every window of consecutive passing tests the raised process noise is halved back
+towards the model's (:attr:`relax`): an inflation answers a manoeuvre or a spell of bad
+data, not the rest of the run (kept up, it made MVBAKF's inverse-Wishart prior, and the
+KF's heading, grow without bound). Inflating the state for a GNSS noise mismatch (a
+default height sigma of 2 m against a 5 m receiver) would let every epoch pull the
+attitude, and repeated, destroys it.
 
 Not in the seeds (their filters adapt R or Q, or fade, each in its own way); this is
 the one check every GNSS-aided filter shares, so that a published sigma stays a claim.
@@ -150,7 +154,7 @@ class ConsistencyMonitor:
         self._nis.clear()
         self._dof.clear()
         self._raw.clear()
-        noise = self._noise_rows()
+        noise = self._noise_rows(spread=not noise_remedy)
         if noise and not noise_remedy:
             self.remedy = 'white innovations, left to the filter\'s noise estimate'
             self.n_white += 1
@@ -166,8 +170,12 @@ class ConsistencyMonitor:
         self.n_inflations += 1
         return factor
 
-    def _noise_rows(self):
-        """Rows to inflate the measurement noise of, with factors; empty for a model error."""
+    def _noise_rows(self, spread):
+        """Rows to inflate the measurement noise of, with factors; empty for a model error.
+
+        ``spread``: a failure with no row failing alone counts as the noise's when every
+        row is white (else, and without ``spread``, as a model error).
+        """
         failing, every_row, persisting = {}, {}, False
         for r, hist in self._u.items():
             u = np.array(hist)
@@ -184,7 +192,7 @@ class ConsistencyMonitor:
         if failing:
             return failing
         # no row fails alone: the noise's only if every row is white
-        return {} if persisting else every_row
+        return every_row if spread and not persisting else {}
 
     def status(self):
         """Figures for diagnostics."""

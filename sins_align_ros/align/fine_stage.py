@@ -369,10 +369,14 @@ class FineStage:
             gnss.used(fix)
             if upd is not None:
                 eng = self.engine
-                # the measurement-noise remedy only where the engine sets R (the
-                # adaptive filters estimate it themselves)
+                # white excess innovations (a noisier receiver) are answered by the
+                # engine's R where it sets R, by the filter's own R posterior in the VB
+                # family (no remedy from here), and for ASCKF, whose Sage-Husa R learns
+                # only on epochs R dominates, by the state's inflation like every failure
+                vb = getattr(eng.kf, 'estimates_R', False)
                 factor = self.consistency.add(eng.last_nis, eng.last_dof, eng.last_u,
-                                              eng.last_rows, rejected=bool(eng.kf.rejected),
+                                              eng.last_rows if eng.sets_R or vb else None,
+                                              rejected=bool(eng.kf.rejected),
                                               noise_remedy=eng.sets_R)
                 if factor is not None:
                     eng.inflate(factor)

@@ -122,14 +122,18 @@ class SageHusa:
         self.k = 0
         self.divergence_flags = 0
 
-    def update(self, upd, idx=None):
+    def update(self, upd, idx=None, lent=None):
         """Update Q and R from a :class:`~sins_align_ros.filters.cubature.CubatureUpdate`.
 
         Eq. 20: if ``y^T y <= tr(E[y y^T])`` (the innovation is consistent with its
         predicted covariance) only Q is updated (eq. 21); otherwise both (eq. 39),
         following step 17 of the seed's algorithm. ``idx`` (m,): the rows of the
         full measurement vector this update used (default all); only that block
-        of R is estimated. Returns ``(Q, R)``.
+        of R is estimated. ``lent`` (len(R),): variances the update used on top of R
+        because they are known (a lever arm's share of the attitude uncertainty,
+        ``align/aided.py``): they are taken out of the innovations' second moment like
+        ``H P H^T``, and counted with it in the test of which rows R dominates; the
+        estimate stays the receiver's own. Returns ``(Q, R)``.
         """
         self.k += 1
         d = (1.0 - self.b) / (1.0 - self.b ** (self.k + self.prior_epochs))
@@ -144,20 +148,28 @@ class SageHusa:
             self.divergence_flags += 1
         idx = np.arange(len(self.R)) if idx is None else np.asarray(idx)
         if self.r_when_identifiable:
-            return self.Q, self._update_identifiable_rows(upd, idx, d)
+            return self.Q, self._update_identifiable_rows(upd, idx, d, lent)
         blk = np.ix_(idx, idx)
-        R_new = (1.0 - d) * self.R[blk] + d * (np.outer(y, y) - eta @ eta.T)  # eq. 39
+        known = 0.0 if lent is None else np.diag(np.asarray(lent, dtype=float)[idx])
+        R_new = (1.0 - d) * self.R[blk] + d * (np.outer(y, y) - eta @ eta.T - known)  # eq. 39
         # keep R positive definite: the subtraction may remove too much
         w, U = np.linalg.eigh(0.5 * (R_new + R_new.T))
         self.R = self.R.copy()
         self.R[blk] = (U * np.clip(w, self.r_floor, self.r_ceiling)) @ U.T
         return self.Q, self.R
 
-    def _update_identifiable_rows(self, upd, idx, d):
-        """Diagonal eq. 39 on the rows where R dominates ``Pzz``, winsorised innovations."""
+    def _update_identifiable_rows(self, upd, idx, d, lent=None):
+        """Diagonal eq. 39 on the rows where R dominates ``Pzz``, winsorised innovations.
+
+        ``lent`` (len(R),) or None: known variances the update used on top of R
+        (:meth:`update`); they are state uncertainty seen through the measurement, so
+        they must not make a row look identifiable.
+        """
         pzz = np.diag(upd.Pzz)
         hph = np.sum(upd.eta * upd.eta, axis=1)                    # diag(eta eta^T)
         r = np.diag(self.R)[idx]
+        if lent is not None:
+            hph = hph + np.asarray(lent, dtype=float)[idx]
         ok = hph <= r
         if not np.any(ok) or np.sum(hph) > np.sum(r):
             return self.R

@@ -107,6 +107,10 @@ class ASCKF:
         self.noise = SageHusa(self.Q, self.R, b=b, gate=gate, adapt_q=adapt_q,
                               r_ceiling=r_ceiling, r_when_identifiable=r_when_identifiable)
         self.lam = np.ones(n)
+        #: (len(R),) or None: known variances the caller lends to the measurement noise
+        #: for its next updates (a lever arm's share of the attitude uncertainty,
+        #: ``align/aided.py``); used with R, never estimated into it (:meth:`_R_used`)
+        self.R_lent = None
         self.last = None
         self.rejected = False
 
@@ -129,6 +133,13 @@ class ASCKF:
         """How often the divergence test of eq. 20 fired."""
         return self.noise.divergence_flags
 
+    def _R_used(self, idx):
+        """Measurement noise (m, m) of rows ``idx``: the estimate plus what is lent."""
+        R = self.R[np.ix_(idx, idx)]
+        if self.R_lent is not None:
+            R = R + np.diag(np.asarray(self.R_lent, dtype=float)[idx])
+        return R
+
     def _faded_sqrt(self, S_l, chi_star, SQ, probe, idx):
         """Square root of the faded prediction covariance (eq. 7-17, 35); sets ``self.lam``.
 
@@ -139,7 +150,7 @@ class ASCKF:
         if tracking is None:
             tracking = self._tracking[key] = StrongTracking(
                 self._alpha, self._rho, self._beta, self._lambda_max)
-        R = self.R[np.ix_(idx, idx)]
+        R = self._R_used(idx)
         P_l = S_l @ S_l.T
         self.lam = tracking.factors(probe.y, P_l, probe.Pxz, self.Q, R)
         apply = True
@@ -181,7 +192,7 @@ class ASCKF:
         Returns the :class:`~sins_align_ros.filters.cubature.CubatureUpdate` of the update.
         """
         idx = measurement_rows(idx, len(self.R))
-        SQ, SR = sqrt_psd(self.Q), sqrt_psd(self.R[np.ix_(idx, idx)])
+        SQ, SR = sqrt_psd(self.Q), sqrt_psd(self._R_used(idx))
         xp, S_l, chi_star = srckf_predict(self.x, self.S, fx, SQ)               # eq. 23-27
         self.faded, self.white = False, True
         self.rejected = False
@@ -191,7 +202,7 @@ class ASCKF:
         if max_nis is not None and nis(probe.y, probe.Pzz) > max_nis:
             self.x, self.S, self.rejected, self.last = xp, S_l, True, probe
             if self.adaptive:
-                self.Q, self.R = self.noise.update(probe, idx)
+                self.Q, self.R = self.noise.update(probe, idx, self.R_lent)
             return probe
         if self.fading:
             S_p = self._faded_sqrt(S_l, chi_star, SQ, probe, idx)
@@ -199,6 +210,6 @@ class ASCKF:
             S_p = S_l
         self.x, self.S, upd = srckf_update(xp, S_p, z, hx, SR)                   # eq. 28-38
         if self.adaptive and self.white:
-            self.Q, self.R = self.noise.update(upd, idx)                         # eq. 39, 20
+            self.Q, self.R = self.noise.update(upd, idx, self.R_lent)            # eq. 39, 20
         self.last = upd
         return upd
