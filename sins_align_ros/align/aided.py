@@ -16,8 +16,9 @@ predicts without an update, so an outage only widens the covariance.
 ``measurement`` and ``_feedback`` (and optionally ``_correct_imu``,
 ``_set_process_noise``, ``_interval_ended``). Its mixins hold the other jobs: what is
 done to the prior before the first epoch (:class:`PriorShaping`), the consistency
-monitor's remedies (:class:`ConsistencyRemedies`) and which horizontal force the model
-may use (:class:`~.force.ForceModel`).
+monitor's remedies (:class:`ConsistencyRemedies`), which horizontal force the model
+may use (:class:`~.force.ForceModel`) and the external heading's epochs
+(:class:`~.heading_update.ExternalHeading`).
 """
 import math
 from dataclasses import dataclass
@@ -29,8 +30,8 @@ from ..filters.kf import nis
 from ..nav.mechanization import MechanizationOptions, Strapdown
 from ..units import DPH, UG
 from .force import ForceModel
-from .gnss_gate import FilterDiverged, GnssGate
-from .heading import LINEAR_MAX, gated_yaw_update, take_heading
+from .gnss_gate import FilterDiverged
+from .heading_update import ExternalHeading
 
 #: the longest interval the error model is propagated without a measurement, s
 MAX_PREDICT = 2.0
@@ -266,7 +267,7 @@ class ConsistencyRemedies:
         self.kf.P = P
 
 
-class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel):
+class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHeading):
     """Mechanization + error-state filter at GNSS epochs; see the module docstring.
 
     Parameters
@@ -297,8 +298,6 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel):
     restages = False
     #: the model estimates the accelerometer bias (else bias / g is added to the tilt)
     has_accel_bias = True
-    #: the external heading's innovation gate, made at its first epoch
-    heading_gate = None
     #: the ENU axis of each row of the full measurement vector: 0-2 position E, N, U,
     #: 3-5 velocity E, N, U (where a lever arm's variance ``GnssFix.arm_var`` goes)
     MEAS_ENU = np.array([0, 1, 3, 4])
@@ -509,45 +508,6 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel):
     def _return_arm_noise(self, arm):
         """End the loan of :meth:`_lend_arm_noise`."""
         self.kf.R_lent = None
-
-    # -- external heading -------------------------------------------------------------
-    def update_heading(self, fix, t_now, w_up=0.0):
-        """Filter epoch for an external heading ``fix`` (:class:`~.heading.HeadingFix`).
-
-        Predicts over the interval so far, then updates the misalignment with the yaw
-        (:func:`~.heading.yaw_update`, carried from the fix's stamp to ``t_now`` with the up
-        rate ``w_up``, rad/s) and feeds the estimate back as a GNSS epoch without a
-        position does; above :data:`~.heading.LINEAR_MAX` the heading is taken directly.
-        Outliers are gated with the GNSS gate's probability (a gate of its own). Returns
-        ``'used'``, ``'taken'`` or ``'rejected'``; raises :class:`FilterDiverged`.
-        """
-        if self.sums.T > 1e-6:
-            self.predict(without_gnss=False)
-        kf = self.kf
-        if self.heading_gate is None:
-            self.heading_gate = GnssGate(self.gate.probability, self.gate.max_rejects, (1,),
-                                         name='heading')
-        yaw = fix.yaw + w_up * (t_now - fix.t)
-        k_up = np.arange(len(kf.x))[self.i_phi][2]
-        P = kf.P
-        if P[k_up, k_up] > LINEAR_MAX ** 2:
-            self.mech.C_b_n, kf.P = take_heading(self.mech.C_b_n, P, k_up, yaw, fix.var)
-            x = kf.x.copy()
-            x[k_up] = 0.0
-            kf.x = x
-            self.heading_prior_var = None
-            self._heading_taken()
-            return 'taken'
-        upd = gated_yaw_update(self.heading_gate, kf, kf.x, kf.P, self.i_phi, self.mech.C_b_n,
-                               fix, yaw)
-        if upd is None:
-            return 'rejected'
-        kf.x, kf.P = upd
-        self._feedback(None)
-        return 'used'
-
-    def _heading_taken(self):
-        """Act on a heading taken directly (the navigation filters' heading is found again)."""
 
     def feed(self, imu, gnss, t0):
         """Run samples 1..N-1 of ``imu`` (``t``, ``dtheta``, ``dv``) from stamp ``t0 = imu.t[0]``.

@@ -1,0 +1,61 @@
+"""The external heading's filter epoch, shared by every GNSS-aided engine.
+
+A mixin of :class:`~.aided.GnssAidedEngine`: a GNSS compass's or gyrocompass's yaw
+(``heading/in``) updates the engine's misalignment between GNSS epochs, or, while the
+heading is still beyond the small-angle model, is taken directly
+(:mod:`.heading` has the measurement itself).
+"""
+import numpy as np
+
+from .gnss_gate import GnssGate
+from .heading import LINEAR_MAX, gated_yaw_update, take_heading
+
+
+class ExternalHeading:
+    """Yaw epochs of an external heading.
+
+    Uses the engine's ``kf``, ``mech``, ``sums``, ``gate``, ``i_phi``, ``predict`` and
+    ``_feedback``; :meth:`_heading_taken` is the families' hook.
+    """
+
+    #: the external heading's innovation gate, made at its first epoch
+    heading_gate = None
+
+    def update_heading(self, fix, t_now, w_up=0.0):
+        """Filter epoch for an external heading ``fix`` (:class:`~.heading.HeadingFix`).
+
+        Predicts over the interval so far, then updates the misalignment with the yaw
+        (:func:`~.heading.yaw_update`, carried from the fix's stamp to ``t_now`` with the up
+        rate ``w_up``, rad/s) and feeds the estimate back as a GNSS epoch without a
+        position does; above :data:`~.heading.LINEAR_MAX` the heading is taken directly.
+        Outliers are gated with the GNSS gate's probability (a gate of its own). Returns
+        ``'used'``, ``'taken'`` or ``'rejected'``; raises
+        :class:`~.gnss_gate.FilterDiverged`.
+        """
+        if self.sums.T > 1e-6:
+            self.predict(without_gnss=False)
+        kf = self.kf
+        if self.heading_gate is None:
+            self.heading_gate = GnssGate(self.gate.probability, self.gate.max_rejects, (1,),
+                                         name='heading')
+        yaw = fix.yaw + w_up * (t_now - fix.t)
+        k_up = np.arange(len(kf.x))[self.i_phi][2]
+        P = kf.P
+        if P[k_up, k_up] > LINEAR_MAX ** 2:
+            self.mech.C_b_n, kf.P = take_heading(self.mech.C_b_n, P, k_up, yaw, fix.var)
+            x = kf.x.copy()
+            x[k_up] = 0.0
+            kf.x = x
+            self.heading_prior_var = None
+            self._heading_taken()
+            return 'taken'
+        upd = gated_yaw_update(self.heading_gate, kf, kf.x, kf.P, self.i_phi, self.mech.C_b_n,
+                               fix, yaw)
+        if upd is None:
+            return 'rejected'
+        kf.x, kf.P = upd
+        self._feedback(None)
+        return 'used'
+
+    def _heading_taken(self):
+        """Act on a heading taken directly (the navigation filters' heading is found again)."""
