@@ -469,7 +469,7 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
             upd = kf.step(fx, z, hx, idx, max_nis=max_nis)
             self._return_process_noise(lent)
             if arm is not None:
-                self._return_arm_noise(arm)
+                self._return_arm_noise()
             self.last_nis = nis(upd.y, upd.Pzz)
             self.last_dof = len(upd.y)
             self.last_u = upd.y / np.sqrt(np.diag(upd.Pzz))
@@ -505,7 +505,7 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
         self.kf.R_lent = arm
         return arm
 
-    def _return_arm_noise(self, arm):
+    def _return_arm_noise(self):
         """End the loan of :meth:`_lend_arm_noise`."""
         self.kf.R_lent = None
 
