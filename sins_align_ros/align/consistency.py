@@ -154,45 +154,46 @@ class ConsistencyMonitor:
         self._nis.clear()
         self._dof.clear()
         self._raw.clear()
-        noise = self._noise_rows(spread=not noise_remedy)
-        if noise and not noise_remedy:
+        if not noise_remedy and self._white_failure():
             self.remedy = 'white innovations, left to the filter\'s noise estimate'
             self.n_white += 1
             return None
-        self.r_factors = noise
-        if noise:
+        self.r_factors = self._noise_rows() if noise_remedy else {}
+        if self.r_factors:
             self.remedy = 'measurement noise inflated (white innovations)'
             self.n_r_inflations += 1
-            for r in noise:
+            for r in self.r_factors:
                 self._u[r].clear()
             return None
         self.remedy = 'covariance and process noise inflated'
         self.n_inflations += 1
         return factor
 
-    def _noise_rows(self, spread):
-        """Rows to inflate the measurement noise of, with factors; empty for a model error.
-
-        ``spread``: a failure with no row failing alone counts as the noise's when every
-        row is white (else, and without ``spread``, as a model error).
-        """
-        failing, every_row, persisting = {}, {}, False
+    def _row_stats(self):
+        """``(row, mean square over the window, lag-1 correlation)`` of rows with a window."""
         for r, hist in self._u.items():
             u = np.array(hist)
-            if len(u) < self.window:
+            if len(u) >= self.window:
+                yield (r, float(np.mean(u[-self.window:] ** 2)),
+                       float(np.sum(u[1:] * u[:-1]) / max(float(np.sum(u * u)), 1e-300)))
+
+    def _noise_rows(self):
+        """Rows to inflate the measurement noise of, with factors; empty for a model error."""
+        failing = {}
+        for r, ms, lag1 in self._row_stats():
+            if ms <= chi2_quantile(self.probability, self.window) / self.window:
                 continue
-            ms = float(np.mean(u[-self.window:] ** 2))
-            lag1 = float(np.sum(u[1:] * u[:-1]) / max(float(np.sum(u * u)), 1e-300))
-            if ms > chi2_quantile(self.probability, self.window) / self.window:
-                if lag1 >= MODEL_LAG1:
-                    return {}
-                failing[r] = min(ms, MAX_INFLATION)
-            persisting = persisting or lag1 >= MODEL_LAG1
-            every_row[r] = min(max(ms, 1.0), MAX_INFLATION)
-        if failing:
-            return failing
-        # no row fails alone: the noise's only if every row is white
-        return every_row if spread and not persisting else {}
+            if lag1 >= MODEL_LAG1:
+                return {}
+            failing[r] = min(ms, MAX_INFLATION)
+        return failing
+
+    def _white_failure(self):
+        """Whether the rows failing alone are all white, or, none failing, every row is."""
+        if self._noise_rows():
+            return True
+        stats = list(self._row_stats())
+        return bool(stats) and all(lag1 < MODEL_LAG1 for _, _, lag1 in stats)
 
     def status(self):
         """Figures for diagnostics."""
