@@ -28,7 +28,7 @@ setup(
             'alignment_lifecycle_node = sins_align_ros.ros.alignment_lifecycle_node:main',
             'simulator_node = sins_align_ros.ros.simulator_node:main',
             'sins_align_demo = sins_align_ros.ros.demo:main',
-            'sins_align_replay = sins_align_ros.cli.replay:main',
+            'sins_align_replay = sins_align_ros.cli.replay:run',
         ],
     },
 )
