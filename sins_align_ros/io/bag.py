@@ -80,9 +80,9 @@ def _open(path):
     return reader
 
 
-def _topics(reader, imu_topic, fix_topic, truth_topic, vel_topic):
+def _topics(connections, imu_topic, fix_topic, truth_topic, vel_topic):
     """Return the connections ``(imu, fix, truth, vel)``; truth and vel None: not read."""
-    c = reader.connections
+    c = connections
     return (_match(c, imu_topic, IMU_TYPE, True), _match(c, fix_topic, FIX_TYPE, False),
             _match(c, truth_topic, ODOM_TYPE, False) if truth_topic else [],
             _match(c, vel_topic, VEL_TYPE, False) if vel_topic else [])
@@ -97,7 +97,8 @@ def iter_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='
     """
     reader = _open(path)
     try:
-        imu, fix, truth, vel = _topics(reader, imu_topic, fix_topic, truth_topic, vel_topic)
+        imu, fix, truth, vel = _topics(reader.connections, imu_topic, fix_topic, truth_topic,
+                                       vel_topic)
         try:
             for conn, _, raw in reader.messages(connections=imu + fix + truth + vel):
                 yield _event(reader, conn, raw)
@@ -132,18 +133,28 @@ def read_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='
              vel_topic='gnss/vel'):
     """Read a rosbag2 folder or .mcap file at once into a :class:`BagRecording`.
 
-    The fast path of :func:`iter_bag` for replaying a whole recording: the raw messages
-    are read without deserialising, the IMU decoded in bulk (:mod:`.cdr`), the few GNSS
-    and truth messages one by one with rosbags (as are IMU messages the bulk decoder
-    does not take). ``truth_topic`` None: truth not read. The same
-    :class:`BagError` rules as :func:`iter_bag`, except that a fault part-way through
-    is returned in ``error`` with what was read before it.
+    The fast path of :func:`iter_bag` for replaying a whole recording: a single
+    uncompressed ``.db3`` is read with sqlite3 and decoded in bulk (:mod:`.bag_db3`);
+    otherwise the raw messages are read with rosbags without deserialising, the IMU
+    decoded in bulk (:mod:`.cdr`), the few GNSS and truth messages one by one with
+    rosbags (as are IMU messages the bulk decoder does not take). ``truth_topic``
+    None: truth not read. The same :class:`BagError` rules as :func:`iter_bag`,
+    except that a fault part-way through is returned in ``error`` with what was read
+    before it.
     """
+    from .bag_db3 import db3_file, read_db3
     from .cdr import decode_imu
+    db = db3_file(path)
+    if db is not None:
+        rec = read_db3(db, lambda topics: _topics(topics, imu_topic, fix_topic, truth_topic,
+                                                  vel_topic))
+        if rec is not None:
+            return rec
     reader = _open(path)
     raws, events, before, error = [], [], [], None
     try:
-        imu, fix, truth, vel = _topics(reader, imu_topic, fix_topic, truth_topic, vel_topic)
+        imu, fix, truth, vel = _topics(reader.connections, imu_topic, fix_topic, truth_topic,
+                                       vel_topic)
         imu_ids = {c.id for c in imu}
         try:
             for conn, _, raw in reader.messages(connections=imu + fix + truth + vel):

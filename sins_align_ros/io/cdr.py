@@ -1,4 +1,6 @@
-"""Bulk decoding of serialized ``sensor_msgs/msg/Imu`` (CDR, as rosbag2 stores it).
+"""Bulk decoding of serialized Imu, NavSatFix, TwistWithCovarianceStamped and Odometry.
+
+The messages are CDR as rosbag2 stores them.
 
 An Imu message has a fixed layout once its ``header.frame_id`` length is known, so a
 whole recording is decoded with a few numpy views instead of one Python object per
@@ -18,6 +20,11 @@ to the end of that header, doubles aligned to 8 there)::
 
 Messages that do not fit (big-endian CDR, a length that disagrees with the layout) are
 left to the caller's general decoder: :func:`decode_imu` says which.
+
+The GNSS and truth messages (:func:`decode_fix`, :func:`decode_twist`,
+:func:`decode_odometry_q`) are decoded the same way with the offsets of each row
+computed from its own string lengths (``_Rows``): a frame id of any length, and a
+serializer's trailing padding of up to 3 bytes, are taken.
 """
 import numpy as np
 
@@ -63,3 +70,129 @@ def decode_imu(raws):
         missing[idx] = (body[:, 16] == -1.0) | (body[:, 28] == -1.0)
         ok[idx] = True
     return t, w, f, missing, ok
+
+
+def _align(x, n):
+    return (x + n - 1) & ~(n - 1)
+
+
+class _Rows:
+    """Messages of one byte length as a (N, size) array, with per-row field reads.
+
+    Offsets are relative to the CDR body (after the 4-byte encapsulation header), one
+    per row (N,); reads past a row's end give ``ok`` False for that row.
+    """
+
+    def __init__(self, raws, idx, size):
+        self.idx = idx
+        self.size = size
+        self.buf = np.frombuffer(b''.join([raws[k] for k in idx]), dtype=np.uint8)
+        self.buf = self.buf.reshape(len(idx), size)
+        self.ok = (self.buf[:, 0] == CDR_LE[0]) & (self.buf[:, 1] == CDR_LE[1])
+        self._r = np.arange(len(idx))[:, None]
+
+    def _bytes(self, off, nbytes):
+        """(N, nbytes) uint8 at per-row body offsets ``off`` (N,)."""
+        cols = off[:, None] + 4 + np.arange(nbytes)
+        inside = cols[:, -1] < self.size
+        self.ok &= inside
+        return self.buf[self._r, np.where(inside[:, None], cols, 0)]
+
+    def u32(self, off):
+        return self._bytes(off, 4).copy().view('<u4')[:, 0].astype(np.int64)
+
+    def f8(self, off, n):
+        return self._bytes(off, 8 * n).copy().view('<f8')
+
+    def u8(self, off):
+        return self._bytes(off, 1)[:, 0].astype(np.int64)
+
+    def string_end(self, off):
+        """Body offset after a CDR string whose length field is at ``off`` (aligned 4)."""
+        off = _align(off, 4)
+        return off + 4 + self.u32(off)
+
+    def ends_at(self, end):
+        """Rows whose message ends at body offset ``end`` (N,), up to 3 bytes of padding."""
+        pad = self.size - 4 - end
+        self.ok &= (pad >= 0) & (pad <= 3)
+
+    def stamp(self):
+        sec = self._bytes(np.zeros(len(self.idx), dtype=np.int64), 4).copy().view('<i4')[:, 0]
+        nsec = self.u32(np.full(len(self.idx), 4))
+        return sec.astype(float) + nsec.astype(float) * 1e-9
+
+
+def _groups(raws):
+    """Yield a :class:`_Rows` per distinct message length (at least a header long)."""
+    lens = np.fromiter(map(len, raws), dtype=np.int64, count=len(raws))
+    for size in np.unique(lens):
+        if size >= 16:
+            yield _Rows(raws, np.flatnonzero(lens == size), int(size))
+
+
+def decode_fix(raws):
+    """Decode serialized ``sensor_msgs/msg/NavSatFix`` messages (list of bytes).
+
+    Returns ``(t, status, llh, cov, cov_type, ok)``: stamp (N,) s, ``status.status``
+    (N,) int, latitude/longitude (deg) and altitude (N, 3), ``position_covariance``
+    (N, 9), its type (N,) int, and ``ok`` (N,) False where not decoded (big-endian or
+    a length that disagrees with the layout: use the general deserialiser).
+
+    Layout after the header: ``status.status`` int8, ``status.service`` uint16
+    (aligned 2), latitude, longitude, altitude, 9 covariance doubles (aligned 8),
+    ``position_covariance_type`` uint8.
+    """
+    n = len(raws)
+    t, status, cov_type = np.full(n, np.nan), np.zeros(n, dtype=int), np.zeros(n, dtype=int)
+    llh, cov, ok = np.full((n, 3), np.nan), np.full((n, 9), np.nan), np.zeros(n, dtype=bool)
+    for g in _groups(raws):
+        e0 = g.string_end(np.full(len(g.idx), 8))
+        st = g.u8(e0)
+        lat = _align(_align(e0 + 1, 2) + 2, 8)
+        vals = g.f8(lat, 12)
+        ct = g.u8(lat + 96)
+        g.ends_at(lat + 97)
+        i, k = g.idx[g.ok], g.ok
+        t[i], llh[i], cov[i] = g.stamp()[k], vals[k, :3], vals[k, 3:]
+        status[i] = np.where(st[k] > 127, st[k] - 256, st[k])
+        cov_type[i], ok[i] = ct[k], True
+    return t, status, llh, cov, cov_type, ok
+
+
+def decode_twist(raws):
+    """Decode serialized ``geometry_msgs/msg/TwistWithCovarianceStamped`` messages.
+
+    Returns ``(t, v, cov, ok)``: stamp (N,) s, ``twist.twist.linear`` (N, 3), the
+    twist covariance (N, 36), ``ok`` (N,) as :func:`decode_fix`. Layout after the
+    header: linear (3), angular (3), covariance (36) doubles, aligned 8.
+    """
+    n = len(raws)
+    t, v = np.full(n, np.nan), np.full((n, 3), np.nan)
+    cov, ok = np.full((n, 36), np.nan), np.zeros(n, dtype=bool)
+    for g in _groups(raws):
+        a = _align(g.string_end(np.full(len(g.idx), 8)), 8)
+        vals = g.f8(a, 42)
+        g.ends_at(a + 336)
+        i, k = g.idx[g.ok], g.ok
+        t[i], v[i], cov[i], ok[i] = g.stamp()[k], vals[k, :3], vals[k, 6:], True
+    return t, v, cov, ok
+
+
+def decode_odometry_q(raws):
+    """Decode the stamp and ``pose.pose.orientation`` of serialized ``nav_msgs/msg/Odometry``.
+
+    Returns ``(t, q_xyzw, ok)``: (N,), (N, 4), (N,) as :func:`decode_fix`. Layout after
+    the header: ``child_frame_id`` (string), then position (3), orientation (4), pose
+    covariance (36), linear and angular velocity (6) and twist covariance (36) doubles.
+    """
+    n = len(raws)
+    t, q, ok = np.full(n, np.nan), np.full((n, 4), np.nan), np.zeros(n, dtype=bool)
+    for g in _groups(raws):
+        e1 = g.string_end(g.string_end(np.full(len(g.idx), 8)))
+        a = _align(e1, 8)
+        vals = g.f8(a + 24, 4)
+        g.ends_at(a + 680)
+        i, k = g.idx[g.ok], g.ok
+        t[i], q[i], ok[i] = g.stamp()[k], vals[k], True
+    return t, q, ok
