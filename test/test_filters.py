@@ -320,3 +320,19 @@ def test_every_filter_has_the_declared_interface(name):
     f.transform(T)
     np.testing.assert_allclose(f.x, T @ x)
     np.testing.assert_allclose(f.P, T @ P @ T.T, rtol=1e-12, atol=1e-15)
+
+
+def test_chi2_quantile_equals_scipy_and_the_closed_forms():
+    """filters.chi2 against scipy.special.chdtri (p >= 1/2) and chi2(2): -2 ln(1 - p)."""
+    from scipy.special import chdtri
+
+    from sins_align_ros.filters.chi2 import chi2_quantile, gamma_p, gamma_q
+    for p in (0.5, 0.8, 0.9, 0.95, 0.99, 0.995, 0.999, 0.9999, 1 - 1e-7):
+        for dof in (1, 2, 3, 4, 5, 6, 9, 12, 15, 30, 60, 120, 600, 3600):
+            assert chi2_quantile(p, dof) == pytest.approx(chdtri(dof, 1 - p), rel=1e-12)
+    for p in (1e-9, 1e-4, 0.3, 0.99, 1 - 1e-9):          # small p: better than 1 - p allows
+        assert chi2_quantile(p, 2) == pytest.approx(-2 * np.log1p(-p), rel=1e-12)
+    assert gamma_p(3.0, 2.0) + gamma_q(3.0, 2.0) == pytest.approx(1.0, abs=1e-15)
+    assert gamma_q(1.0, 7.0) == pytest.approx(np.exp(-7.0), rel=1e-13)
+    with pytest.raises(ValueError):
+        chi2_quantile(1.0, 3)

@@ -9,6 +9,7 @@ from sins_align_ros.align.navigation import IntegratedNavigation, gyro_tau, mode
 from sins_align_ros.align.pipeline import AlignmentPipeline
 from sins_align_ros.align.session import feed_arrays
 from sins_align_ros.filters import kf as lkf
+from sins_align_ros.filters.chi2 import chi2_quantile
 from sins_align_ros.filters.cubature import batched
 from sins_align_ros.filters.linear_kf import KF, linear
 from sins_align_ros.filters.mvbakf import MVBAKF
@@ -171,7 +172,7 @@ def test_gated_vb_filters_learn_a_noise_step_instead_of_rejecting_it(cls):
     hx = batched(lambda X: H @ X)
     rejected = []
     for z in Z:
-        f.step(linear(F), z, hx, max_nis=lkf.chi2_quantile(0.9999, 2))
+        f.step(linear(F), z, hx, max_nis=chi2_quantile(0.9999, 2))
         rejected.append(f.rejected)
     late = np.mean(rejected[250:])
     if cls is KF:

@@ -60,7 +60,7 @@ from collections import deque
 
 import numpy as np
 
-from ..filters.kf import chi2_quantile
+from ..filters.chi2 import chi2_quantile
 
 #: epochs in the window
 WINDOW = 10

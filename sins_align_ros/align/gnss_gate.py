@@ -10,7 +10,7 @@ times without ``max_rejects`` accepted epochs in between, the inertial solution
 and GNSS disagree for good and :meth:`GnssGate.threshold` raises
 :class:`FilterDiverged`.
 """
-from ..filters.kf import chi2_quantile
+from ..filters.chi2 import chi2_quantile
 
 #: forced acceptances (after ``max_rejects`` rejections each) in a row after which the
 #: inertial solution and GNSS are taken to disagree for good: the caller restarts alignment

@@ -18,7 +18,8 @@ import numpy as np
 from .adaptive import SageHusa, StrongTracking
 from .base import measurement_rows
 from .cubature import chol_lower, sqrt_psd, srckf_predict, srckf_update, tria
-from .kf import chi2_quantile, nis
+from .chi2 import chi2_quantile
+from .kf import nis
 
 
 def lag1_correlation(w):

@@ -11,7 +11,6 @@ A function marked with :func:`batched` takes all points at once as columns
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import cholesky, solve_triangular
 
 from ..nav import kernels
 
@@ -89,7 +88,7 @@ def tria_lapack(A):
 
 def chol_lower(P):
     """Lower Cholesky factor of a symmetric positive definite matrix."""
-    return cholesky(0.5 * (P + P.T), lower=True)
+    return np.linalg.cholesky(0.5 * (P + P.T))
 
 
 def sqrt_psd(A):
@@ -101,7 +100,7 @@ def sqrt_psd(A):
     """
     A = 0.5 * (A + A.T)
     try:
-        return cholesky(A, lower=True)
+        return np.linalg.cholesky(A)
     except np.linalg.LinAlgError:
         w, U = np.linalg.eigh(A)
         return U * np.sqrt(np.clip(w, 0.0, None))
@@ -205,9 +204,9 @@ def srckf_update(x, S, z, hx, SR):
     chi = (X - x[:, None]) * w
     Szz = tria(np.hstack([eta, SR]))
     Pxz = chi @ eta.T
-    # eq. 36: K = (Pxz / Szz^T) / Szz, i.e. Pxz (Szz Szz^T)^-1 by two triangular solves
-    tmp = solve_triangular(Szz, Pxz.T, lower=True)
-    K = solve_triangular(Szz.T, tmp, lower=False).T
+    # eq. 36: K = (Pxz / Szz^T) / Szz, i.e. Pxz (Szz Szz^T)^-1 by two solves with the
+    # triangular factors (numpy's general solve: scipy.linalg is not imported for this)
+    K = np.linalg.solve(Szz.T, np.linalg.solve(Szz, Pxz.T)).T
     y = z - zp
     x = x + K @ y
     S = tria(np.hstack([chi - K @ eta, K @ SR]))

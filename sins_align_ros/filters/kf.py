@@ -3,11 +3,7 @@
 Shapes: ``x`` (n,), ``P`` (n, n), ``F`` (n, n), ``Q`` (n, n), ``z`` (m,),
 ``H`` (m, n), ``R`` (m, m). Returned arrays are new objects.
 """
-from functools import lru_cache
-
 import numpy as np
-from scipy.linalg import expm
-from scipy.special import chdtri
 
 #: winsorisation bound of an innovation squared, in predicted variances (99.9% of chi2(1))
 CLIP = 10.83
@@ -47,6 +43,7 @@ def discretize(F, G, Qc, dt):
     Returns ``(Phi, Qd)`` with ``Phi = expm(F dt)`` and
     ``Qd = int_0^dt Phi(s) G Qc G^T Phi(s)^T ds``.
     """
+    from scipy.linalg import expm       # here: only the stationary filters discretize
     n = F.shape[0]
     M = np.zeros((2 * n, 2 * n))
     M[:n, :n] = -F
@@ -61,14 +58,3 @@ def discretize(F, G, Qc, dt):
 def nis(y, S):
     """Normalised innovation squared ``y^T S^-1 y`` (chi-square with m dof when consistent)."""
     return float(y @ np.linalg.solve(S, y))
-
-
-@lru_cache(maxsize=None)
-def chi2_quantile(probability, dof):
-    """Chi-square quantile of ``probability`` for ``dof`` degrees of freedom (cached).
-
-    ``scipy.special.chdtri`` (the inverse survival function) rather than
-    ``scipy.stats.chi2.ppf``: the same number, without importing scipy.stats (0.3 s of
-    every process start).
-    """
-    return float(chdtri(dof, 1.0 - probability))

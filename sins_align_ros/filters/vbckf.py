@@ -25,7 +25,8 @@ import numpy as np
 from .base import PriorInnovation, measurement_rows
 from .ckf import CKF
 from .cubature import ckf_predict
-from .kf import chi2_quantile, nis
+from .chi2 import chi2_quantile
+from .kf import nis
 from .linear_kf import measurement_matrix
 from .variational import prior_alpha, vb_update
 
