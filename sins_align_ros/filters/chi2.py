@@ -110,7 +110,7 @@ def chi2_quantile(probability, dof):
 
 
 def _normal_quantile(p):
-    """Return the standard normal quantile to about 5e-4 (a starting value; Abramowitz-Stegun 26.2.23)."""
+    """Return the standard normal quantile to about 5e-4 (Abramowitz-Stegun 26.2.23)."""
     t = math.sqrt(-2.0 * math.log(min(p, 1.0 - p)))
     z = t - (2.515517 + 0.802853 * t + 0.010328 * t * t) / (
         1.0 + 1.432788 * t + 0.189269 * t * t + 0.001308 * t ** 3)
