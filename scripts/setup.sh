@@ -39,12 +39,20 @@ if [ ! -f "$stamp" ] || [ -n "$(find setup.py setup.cfg package.xml resource sin
       --event-handlers console_cohesion- summary- >"$root/log/colcon-build.txt" 2>&1 \
       || { cat "$root/log/colcon-build.txt" >&2; exit 1; }
   )
+  # compile the kernels ahead of time (numba.pycc, a C compiler: nav/_aot_kernels) into the
+  # source tree the tests import and the installed copy: no process then imports numba; if
+  # that cannot be done here the kernels stay just-in-time compiled (said in the build log)
+  pkg="$root/install/sins_align_ros/lib/python3.11/site-packages/sins_align_ros"
+  (cd "$root" && "$venv/bin/python" -m sins_align_ros.nav.aot "$root/sins_align_ros" "$pkg") \
+    >>"$root/log/colcon-build.txt" 2>&1 \
+    || echo "setup: kernels not compiled ahead of time (see log/colcon-build.txt)" >&2
   # compile the numba kernels into their on-disk caches (the installed copy and the
   # source tree the tests import), so that no first run compiles in the middle of the data
   # and no two test processes compile one kernel at once (the models', filters' and the
-  # CSV's kernels join warm_up when their modules are imported)
+  # CSV's kernels join warm_up when their modules are imported); the just-in-time path
+  # is filled too (SINS_ALIGN_NO_AOT=1): the tests run it beside the ahead-of-time one
   for where in "$root/install/sins_align_ros/lib/python3.11/site-packages" "$root"; do
-    (cd "$where" && "$venv/bin/python" -c \
+    (cd "$where" && SINS_ALIGN_NO_AOT=1 "$venv/bin/python" -c \
       "import sins_align_ros.align.pipeline, sins_align_ros.io.fixed_text
 from sins_align_ros.nav import kernels; kernels.warm_up(); print(kernels.__file__)") \
       >>"$root/log/colcon-build.txt" \

@@ -2,10 +2,13 @@
 
 ``SINS_ALIGN_NO_JIT=1`` makes :mod:`sins_align_ros.nav.kernels` plain Python (the
 reference, also what runs without numba); a child process runs every fine filter that
-way and the results must equal this process's compiled ones to round-off.
+way and the results must equal the compiled ones to round-off: those of the
+ahead-of-time module (``nav/_aot_kernels``, built by setup) and of numba's just-in-time
+path (``SINS_ALIGN_NO_AOT=1``).
 """
 import json
 import os
+import shutil
 import subprocess
 import sys
 
@@ -27,7 +30,7 @@ from sins_align_ros.eval.run import run_pipeline
 from sins_align_ros.eval.scenarios import named, simulate
 from sins_align_ros.nav import kernels
 from sins_align_ros.sim.presets import alignment_params
-res = {{'compiled': kernels.COMPILED}}
+res = {{'compiled': kernels.COMPILED, 'aot': kernels.AOT is not None}}
 for f, name in {cases!r}.items():
     sc = named(name, 150.0)
     out = run_pipeline(alignment_params(sc, f), simulate(sc, 4), block=700).out
@@ -37,20 +40,25 @@ print(json.dumps(res))
 """
 
 
-def _run(no_jit):
+def _run(no_jit, no_aot=False):
     env = dict(os.environ, OPENBLAS_NUM_THREADS='1')
     env.pop('SINS_ALIGN_NO_JIT', None)
+    env.pop('SINS_ALIGN_NO_AOT', None)
     if no_jit:
         env['SINS_ALIGN_NO_JIT'] = '1'
+    if no_aot:
+        env['SINS_ALIGN_NO_AOT'] = '1'
     out = subprocess.run([sys.executable, '-c', RUN.format(root=str(ROOT), cases=CASES)],
                          env=env, check=True, capture_output=True, text=True).stdout
     return json.loads(out.strip().splitlines()[-1])
 
 
 @pytest.mark.skipif(not kernels.COMPILED, reason='numba not installed or switched off')
-def test_every_fine_filter_gives_the_same_result_compiled_and_in_pure_python():
-    ref, fast = _run(True), _run(False)
+@pytest.mark.parametrize('no_aot', [False, True], ids=['ahead-of-time', 'just-in-time'])
+def test_every_fine_filter_gives_the_same_result_compiled_and_in_pure_python(no_aot):
+    ref, fast = _run(True), _run(False, no_aot)
     assert ref.pop('compiled') is False and fast.pop('compiled') is True
+    assert ref.pop('aot') is False and fast.pop('aot') is (kernels.AOT is not None and not no_aot)
     for f in CASES:
         (q0, P0, ph0), (q1, P1, ph1) = ref[f], fast[f]
         assert ph0 == ph1 and ph0 != 'coarse', f
@@ -90,5 +98,36 @@ def test_warm_up_compiles_every_signature_the_pipeline_uses():
     """
     out = subprocess.run([sys.executable, '-c', WARM.format(root=str(ROOT))], check=True,
                          capture_output=True, text=True,
-                         env=dict(os.environ, OPENBLAS_NUM_THREADS='1')).stdout
+                         env=dict(os.environ, OPENBLAS_NUM_THREADS='1',
+                                  SINS_ALIGN_NO_AOT='1')).stdout
     assert out.startswith('True'), out
+
+
+IMPORTS = """
+import sys
+sys.path.insert(0, {root!r})
+from sins_align_ros.cli import replay  # noqa: F401  (the replay's and the pipeline's imports)
+from sins_align_ros.nav import kernels
+kernels.warm_up()
+print(kernels.AOT is not None, 'numba' in sys.modules, 'scipy.linalg' in sys.modules)
+"""
+
+
+@pytest.mark.skipif(shutil.which('cc') is None, reason='no C compiler: no ahead-of-time build')
+def test_setup_built_the_ahead_of_time_kernels_and_a_replay_imports_neither_numba_nor_scipy():
+    """Issue 22: numba's import and first call (with scipy.linalg) were 0.7 s of each start."""
+    assert kernels.AOT is not None, 'scripts/setup.sh did not build nav/_aot_kernels'
+    assert {name for name, _, _ in kernels.EXPORTS} <= set(dir(kernels.AOT))
+    out = subprocess.run([sys.executable, '-c', IMPORTS.format(root=str(ROOT))], check=True,
+                         capture_output=True, text=True,
+                         env=dict(os.environ, OPENBLAS_NUM_THREADS='1')).stdout
+    assert out.split() == ['True', 'False', 'False'], out
+
+
+def test_a_stale_ahead_of_time_module_is_not_used(monkeypatch):
+    """Built from other sources (an edit since setup): the just-in-time path instead."""
+    with monkeypatch.context() as m:
+        m.setattr(kernels, 'source_hash', lambda: '0' * 40)
+        assert kernels._load_aot() is None
+    monkeypatch.setenv('SINS_ALIGN_NO_AOT', '1')
+    assert kernels._load_aot() is None

@@ -40,6 +40,7 @@ Reasons that the caller should report are queued in :attr:`ImuInput.notices`
 as ``(key, text)``; :meth:`ImuInput.pop_notices` drains them.
 """
 import math
+import statistics
 from collections import Counter, deque
 
 import numpy as np
@@ -231,7 +232,7 @@ class ImuInput:
         """Re-estimate the nominal interval when a rate window has just filled."""
         if len(self._dts) < RATE_WINDOW or self.counts['accepted'] % RATE_WINDOW:
             return
-        nom, med = self.dt_nominal, float(np.median(self._dts))
+        nom, med = self.dt_nominal, statistics.median(self._dts)   # 50 floats: no numpy
         if nom is None:
             self.dt_nominal = med
         elif abs(med / nom - 1.0) > 0.2:

@@ -35,7 +35,7 @@ def tria(A):
     return tria_lapack(A)
 
 
-@kernels.jit
+@kernels.jit(sig='void(f8[:, :], f8[:, :])')
 def _tria_householder(A, S):
     """Write into ``S`` (n, n) the lower factor of ``A`` (n, k >= n): Householder on ``A^T``.
 

@@ -72,7 +72,7 @@ def _put_number(buf, k, x, d, scale):
     return k
 
 
-@kernels.jit
+@kernels.jit(sig='Tuple((u1[:], i8[:], b1[:]))(f8[:, :], i8[:], i8, i8[:], u1[:, :], i8[:])')
 def _format_rows(values, decimals, text_col, text_index, text_bytes, text_len):
     """Kernel of :func:`format_table`: ``(buf, row_end, python_rows)``."""
     n, m = values.shape

@@ -170,7 +170,7 @@ def _derivative_column(x, k, terms, C):
         k[1] += C[1, 0] * x[10] + C[1, 1] * x[11] + C[1, 2] * x[12]
 
 
-@kernels.jit
+@kernels.jit(sig='void(f8[:, :], f8[:], f8[:, :], f8, i8, f8[:, :])')
 def _rk4_columns(X, terms, C, dt, substeps, out):
     """:func:`propagate_reference` of every column of ``X`` (n, N) into ``out`` (n, N)."""
     n, m = X.shape

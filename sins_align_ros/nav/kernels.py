@@ -6,38 +6,111 @@ of samples: the same equations in the same order (the module docstring of
 without temporaries. :meth:`Strapdown.update` stays the readable reference, and a test
 keeps the two equal to round-off (test_mechanization.py).
 
-numba is optional at run time: without it, or with ``SINS_ALIGN_NO_JIT=1`` in the
-environment, the same functions run as plain Python (correct and slow). Compiled code
-is cached on disk (``cache=True``: beside this file, or in the user's cache directory
-when that is read-only, numba's own fallback), so only the first start on a machine
-compiles (issue 22).
+Three ways the same functions run, chosen once at import:
+
+1. **Ahead of time** (:mod:`.aot`): the kernels compiled by ``numba.pycc`` into the
+   extension module ``nav/_aot_kernels`` when the package is set up. Loading it takes a
+   millisecond and does not import numba, whose import and first compiled call
+   (its type registries, and ``scipy.linalg`` for its BLAS check) cost about 0.7 s of
+   every process start (issue 22). Used only while ``_aot_kernels.sha1`` beside it
+   matches the kernels' sources (:func:`source_hash`): an edit makes it stale and the
+   next path is taken until it is built again (``SINS_ALIGN_NO_AOT=1`` skips it).
+2. **Just in time**: numba compiles at the first call and caches on disk
+   (``cache=True``: beside this file, or in the user's cache directory when that is
+   read-only, numba's own fallback), so only the first start on a machine compiles.
+3. **Plain Python**: without numba, or with ``SINS_ALIGN_NO_JIT=1`` in the environment
+   (correct and slow; the reference the tests hold the compiled paths to).
+
+Kernels called from Python are declared with their numba signature
+(``@jit(sig=...)``): the ahead-of-time module exports exactly those; helpers only
+called by kernels are compiled into them.
 """
+import functools
+import hashlib
 import math
 import os
+from pathlib import Path
 
 import numpy as np
 
 from .earth import A, E2, G_EQUATOR, K_SOMIGLIANA, OMEGA_IE
 
-try:                                     # pragma: no cover - depends on the install
-    import numba
-except ImportError:                      # pragma: no cover
-    numba = None
+#: the kernels' sources (package-relative): what the ahead-of-time module is built from
+AOT_SOURCES = ('nav/kernels.py', 'nav/earth.py', 'filters/cubature.py',
+               'models/large_azimuth.py', 'io/fixed_text.py')
+#: the ahead-of-time module's name (in this package) and its source hash file
+AOT_MODULE = '_aot_kernels'
+_PACKAGE = Path(__file__).resolve().parents[1]
+_NO_JIT = os.environ.get('SINS_ALIGN_NO_JIT', '') == '1'
+#: set by :mod:`.aot` while it compiles: every kernel a plain numba function, no cache
+BUILDING_AOT = os.environ.get('SINS_ALIGN_AOT_BUILD', '') == '1'
 
-#: the kernels are compiled (numba present and not switched off)
-COMPILED = numba is not None and os.environ.get('SINS_ALIGN_NO_JIT', '') != '1'
+
+def source_hash():
+    """SHA-1 (hex) of :data:`AOT_SOURCES`' contents, in order."""
+    h = hashlib.sha1()
+    for rel in AOT_SOURCES:
+        h.update((_PACKAGE / rel).read_bytes())
+    return h.hexdigest()
 
 
-#: every kernel compiled through :func:`jit` (this module's and the models'), in order
+def _load_aot():
+    """Return the ahead-of-time module if it is there and built from these sources.
+
+    ``SINS_ALIGN_NO_AOT=1`` in the environment skips it (the just-in-time path, tested).
+    """
+    if _NO_JIT or BUILDING_AOT or os.environ.get('SINS_ALIGN_NO_AOT', '') == '1':
+        return None
+    stamp = Path(__file__).with_name(AOT_MODULE + '.sha1')
+    try:
+        if stamp.read_text().strip() != source_hash():
+            return None
+        from . import _aot_kernels as module
+    except (OSError, ImportError):
+        return None
+    return module
+
+
+AOT = _load_aot()
+numba = None
+if AOT is None and not _NO_JIT:
+    try:                                 # pragma: no cover - depends on the install
+        import numba
+    except ImportError:                  # pragma: no cover
+        numba = None
+
+#: the kernels are compiled (ahead of time, or by numba; not switched off)
+COMPILED = AOT is not None or numba is not None
+
+
+#: every kernel compiled just in time through :func:`jit`, in order (empty ahead of time)
 DISPATCHERS = []
+#: ``(export name, Python function, numba signature)`` of every declared kernel
+EXPORTS = []
 #: first calls registered by other modules' kernels (:func:`warms_up`)
 _WARM_UPS = []
 
 
-def jit(func):
-    """Compile ``func`` with numba (cached on disk) when :data:`COMPILED`, else return it."""
-    if COMPILED:
-        dispatcher = numba.njit(cache=True, nogil=True)(func)
+def export_name(func):
+    """Name of ``func`` in the ahead-of-time module: ``<module>__<function>``."""
+    return f'{func.__module__.rsplit(".", 1)[-1]}__{func.__name__}'
+
+
+def jit(func=None, *, sig=None):
+    """Compile ``func``: ahead of time, with numba (cached on disk), or leave it Python.
+
+    ``sig``: the numba signature of a kernel called from Python (exported by the
+    ahead-of-time module); without it ``func`` is a helper that kernels call, compiled
+    into them (plain Python when the ahead-of-time module is used).
+    """
+    if func is None:
+        return functools.partial(jit, sig=sig)
+    if sig is not None:
+        EXPORTS.append((export_name(func), func, sig))
+    if AOT is not None:
+        return getattr(AOT, export_name(func)) if sig is not None else func
+    if numba is not None:
+        dispatcher = numba.njit(cache=not BUILDING_AOT, nogil=True)(func)
         DISPATCHERS.append(dispatcher)
         return dispatcher
     return func
@@ -64,7 +137,7 @@ def _gravity(lat, h):
     return g0 - (3.0877e-6 - 4.4e-9 * s2) * h + 7.2e-14 * h ** 2
 
 
-@jit
+@jit(sig='UniTuple(f8, 9)(f8, f8, f8)')
 def rodrigues9(x, y, z):
     """Rodrigues ``exp([v x])`` of ``v = (x, y, z)`` as a row-major 9-tuple of floats.
 
@@ -93,7 +166,7 @@ def _rodrigues(x, y, z, R):
     R[2, 0], R[2, 1], R[2, 2] = r[6], r[7], r[8]
 
 
-@jit
+@jit(sig='UniTuple(f8, 6)(f8, f8, b1, f8[:])')
 def earth_terms(lat, h, cached, ec):
     """``(sin, cos, tan, R_M, R_N, g)`` at ``lat``, ``h``; ``cached``: through ``ec`` (8,).
 
@@ -111,7 +184,7 @@ def earth_terms(lat, h, cached, ec):
     return out
 
 
-@jit
+@jit(sig='UniTuple(f8, 6)(' + ', '.join(['f8'] * 12) + ')')
 def coning_sculling(ax, ay, az, bx, by, bz, px, py, pz, qx, qy, qz):
     """Coning-corrected rotation ``phi`` and rotation + sculling corrected ``dv_b``.
 
@@ -133,7 +206,8 @@ def coning_sculling(ax, ay, az, bx, by, bz, px, py, pz, qx, qy, qz):
     return fx, fy, fz, ux, uy, uz
 
 
-@jit
+@jit(sig='i8(f8[:, :], f8[:], f8[:], f8[:], f8[:], f8[:], f8[:], i8, f8[:, :], f8[:, :], '
+         'f8[:], b1, b1, b1, b1, b1, f8[:], f8[:, :, :], f8[:, :], f8[:, :], f8[:, :])')
 def strapdown_run(C, v, v_prev, pos, pos_prev, dth_prev, dv_prev, steps, dtheta, dv, dt,
                   transport_rate, update_position, coriolis, hold_vertical, cached, ec,
                   C_out, v_out, pos_out, dvsf_out):
@@ -232,7 +306,7 @@ def strapdown_run(C, v, v_prev, pos, pos_prev, dth_prev, dv_prev, steps, dtheta,
     return steps
 
 
-@jit
+@jit(sig='void(f8[:, :], f8[:, :, :])')
 def attitude_increments(dtheta, out):
     """``C_b(t_k)^{b0}`` for k = 1..N into ``out`` (N, 3, 3), from ``dtheta`` (N, 3) rad.
 

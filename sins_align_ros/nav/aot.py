@@ -1,0 +1,71 @@
+"""Build the ahead-of-time kernel module (``nav/_aot_kernels``) with ``numba.pycc``.
+
+    python -m sins_align_ros.nav.aot [PACKAGE_DIR ...]
+
+compiles every kernel declared with a signature (:data:`~.kernels.EXPORTS`) into one
+extension module in ``PACKAGE_DIR/nav`` (default: this package's own) and writes
+``_aot_kernels.sha1``, the hash of the sources it was built from, which
+:mod:`.kernels` checks before it uses the module. Needs numba and a C compiler at
+build time only; the module itself needs numpy alone. ``scripts/setup.sh`` runs it
+for the source tree and the colcon install; where it cannot run, the kernels stay
+just-in-time compiled (the same numbers, a slower start).
+
+``numba.pycc`` is marked for deprecation by numba (its replacement is not released);
+where a numba without it is installed this exits with a message and the package keeps
+the just-in-time path. Exit code 0 built, 1 not built (the reason on stderr).
+"""
+import os
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+
+
+def _compile(workdir):
+    """Compile the exported kernels into ``workdir``; returns the module file's path."""
+    os.environ['SINS_ALIGN_AOT_BUILD'] = '1'
+    import warnings
+    from numba.pycc import CC
+
+    from ..filters import cubature  # noqa: F401 (their kernels join EXPORTS on import)
+    from ..io import fixed_text  # noqa: F401
+    from ..models import large_azimuth  # noqa: F401
+    from . import kernels
+    assert kernels.BUILDING_AOT and kernels.AOT is None
+    cc = CC(kernels.AOT_MODULE)
+    cc.output_dir = str(workdir)
+    cc.verbose = False
+    for name, func, sig in kernels.EXPORTS:
+        cc.export(name, sig)(func)
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore')
+        cc.compile()
+    built = [p for p in Path(workdir).iterdir() if p.name.startswith(kernels.AOT_MODULE)]
+    if len(built) != 1:
+        raise RuntimeError(f'numba.pycc produced {[p.name for p in built]}')
+    return built[0], kernels.source_hash()
+
+
+def main(argv=None):
+    """Build into each package directory given (default: this package); returns 0 or 1."""
+    argv = sys.argv[1:] if argv is None else argv
+    targets = [Path(a) for a in argv] or [Path(__file__).resolve().parents[1]]
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            module, digest = _compile(tmp)
+            for package in targets:
+                nav = package / 'nav'
+                for old in nav.glob('_aot_kernels*'):
+                    old.unlink()
+                shutil.copy2(module, nav / module.name)
+                (nav / '_aot_kernels.sha1').write_text(digest + '\n')
+    except Exception as exc:          # no numba.pycc, no compiler, ...: stay just in time
+        print(f'sins_align_ros.nav.aot: kernels not compiled ahead of time '
+              f'({type(exc).__name__}: {exc}); numba will compile them at first use',
+              file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
