@@ -9,15 +9,22 @@ A function marked with :func:`batched` takes all points at once as columns
 (n, 2n), which is much faster than one call per point.
 """
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
 from ..nav import kernels
 
 
+@lru_cache(maxsize=None)
 def cubature_points(n):
-    """Return the unit cubature points ``sqrt(n) [I, -I]`` (seed 000 eq. 22), (n, 2n)."""
-    return np.sqrt(n) * np.hstack([np.eye(n), -np.eye(n)])
+    """Return the unit cubature points ``sqrt(n) [I, -I]`` (seed 000 eq. 22), (n, 2n).
+
+    One read-only array per ``n``, built once (every update used to build it again).
+    """
+    points = np.sqrt(n) * np.hstack([np.eye(n), -np.eye(n)])
+    points.flags.writeable = False
+    return points
 
 
 def tria(A):
