@@ -101,15 +101,19 @@ print(time.perf_counter() - t0)
 """
 
 
-def start_up(cache_dir):
-    """Seconds from a new interpreter to the first ``Strapdown.run`` result, cache in ``dir``.
+def start_up(cache_dir, aot=False):
+    """Seconds from a new interpreter to the first ``Strapdown.run`` result.
 
-    Imports included; ``NUMBA_CACHE_DIR`` points numba at ``cache_dir`` (empty: it
-    compiles and writes the cache; filled: it loads).
+    Imports included. ``aot``: the ahead-of-time kernel module (``nav/_aot_kernels``);
+    else numba's just-in-time path (``SINS_ALIGN_NO_AOT=1``) with ``NUMBA_CACHE_DIR`` at
+    ``cache_dir`` (empty: it compiles and writes the cache; filled: it loads).
     """
     import os
     import subprocess
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache_dir))
+    env.pop('SINS_ALIGN_NO_AOT', None)
+    if not aot:
+        env['SINS_ALIGN_NO_AOT'] = '1'
     code = COLD.format(root=str(Path(__file__).resolve().parents[1]))
     out = subprocess.run([sys.executable, '-c', code], env=env, check=True,
                          capture_output=True, text=True).stdout
@@ -127,6 +131,8 @@ def main(argv=None):
     with tempfile.TemporaryDirectory() as cache:
         cold = start_up(cache)
         warm_start = statistics.median(start_up(cache) for _ in range(3))
+        aot_start = statistics.median(start_up(cache, aot=True) for _ in range(3)) \
+            if kernels.AOT is not None else None
     case = samples()
     funcs = integrators(case)
     warm = {}
@@ -145,7 +151,8 @@ def main(argv=None):
     n = len(case[5])
     lines = ['# Mechanization speed (issue 22, must-show 2)', '',
              f'Command: `python bench/mechanization_speed.py --repeats {args.repeats}` on '
-             f'{machine_summary()}; numba kernels compiled: {kernels.COMPILED}.', '',
+             f'{machine_summary()}; kernels compiled: {kernels.COMPILED}, ahead of time: '
+             f'{kernels.AOT is not None}.', '',
              f'{n} samples ({SECONDS:.0f} s at {RATE_HZ:.0f} Hz, ship_underway), each '
              'integrator timed alternately in one process, median of '
              f'{args.repeats} runs after a warm-up call (first call, compile or cache load, '
@@ -161,9 +168,13 @@ def main(argv=None):
               f'{med["pyins Integrator"] / med["ours run"]:.2f}x. `Strapdown.run` is '
               f'{med["ours step"] / med["ours run"]:.0f}x faster than the per-sample '
               '`step` path.', '',
-              f'Start-up, a new Python process to the first `Strapdown.run` result (imports '
-              f'included): {cold:.2f} s with an empty numba cache (it compiles and writes '
-              f'the cache), {warm_start:.2f} s with the cache filled (median of 3).', '']
+              'Start-up, a new Python process to the first `Strapdown.run` result (imports '
+              'included; median of 3): '
+              + (f'{aot_start:.2f} s with the ahead-of-time kernels (`nav/_aot_kernels`, '
+                 'numba not imported); ' if aot_start is not None else '')
+              + f'just in time (`SINS_ALIGN_NO_AOT=1`) {cold:.2f} s with an empty numba '
+              f'cache (it compiles and writes the cache), {warm_start:.2f} s with the cache '
+              'filled.', '']
     Path(args.out).write_text('\n'.join(lines))
     print('\n'.join(lines))
     return 0

@@ -15,16 +15,18 @@ Three processes on one machine, local discovery only, their own ``ROS_DOMAIN_ID`
 
 The node's CPU share is its user + system time (``/proc/PID/stat``) over the fine
 phase's last ``--window`` seconds divided by that wall time. Cold start: from launching
-the node to its first ``imu/data`` message with an empty numba cache and with the
-cache filled (the IMU already flowing; the coarse phase publishes from the first
-sample).
+the node to its first ``imu/data`` message (the IMU already flowing; the coarse phase
+publishes from the first sample), with the ahead-of-time kernels (``nav/_aot_kernels``,
+built by setup) or, for a filter given as ``NAME/jit``, numba's just-in-time path
+(``SINS_ALIGN_NO_AOT=1``): its first run with an empty numba cache, later ones with the
+cache it filled.
 
 ``relay`` in ``--filters`` runs, in the node's place, the least a node can do with the same
 traffic in rclpy: subscribe ``imu/data_raw`` and republish each message on ``imu/data``
 with the node's QoS and executor (``runner.make_executor``): the floor of the CPU share.
 
 Usage: python bench/node_load.py [--rate 1000] [--seconds 150] [--window 60]
-                                 [--filters asckf,kf,relay] [--out FILE]
+                                 [--filters asckf/jit,asckf,kf,relay] [--out FILE]
 """
 import argparse
 import os
@@ -167,11 +169,14 @@ class Listener:
         self.ctx.try_shutdown()
 
 
-def run_case(fine_filter, args, folder, cache_dir):
-    """Run one node under load; returns a dict of the measurements."""
+def run_case(fine_filter, args, folder, cache_dir, jit=False):
+    """Run one node under load (``jit``: numba's path); returns a dict of the measurements."""
     from sins_align_ros.ros.runner import stop_processes
     env = dict(os.environ, PYTHONPATH=str(ROOT), OPENBLAS_NUM_THREADS='1',
                NUMBA_CACHE_DIR=str(cache_dir))
+    env.pop('SINS_ALIGN_NO_AOT', None)
+    if jit:
+        env['SINS_ALIGN_NO_AOT'] = '1'
     pub = subprocess.Popen([sys.executable, '-c', PUBLISHER.format(
         root=str(ROOT), scenario=SCENARIO, seconds=args.seconds, rate=float(args.rate))],
         stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env)
@@ -222,10 +227,15 @@ def main(argv=None):
     args = ap.parse_args(argv)
     results = {}
     with tempfile.TemporaryDirectory() as folder:
-        cache = Path(folder) / 'numba'            # empty: the first node compiles into it
-        for k, f in enumerate(args.filters.split(',')):
-            results[f] = run_case(f, args, folder, cache)
-            results[f]['cache'] = '-' if f == 'relay' else 'filled' if k else 'empty'
+        cache = Path(folder) / 'numba'            # empty: the first JIT node compiles into it
+        jit_runs = 0
+        for f in args.filters.split(','):
+            name, jit = f.split('/')[0], f.endswith('/jit')
+            results[f] = run_case(name, args, folder, cache, jit)
+            results[f]['cache'] = ('-' if name == 'relay' else
+                                   'ahead of time' if not jit else
+                                   'JIT, cache filled' if jit_runs else 'JIT, empty cache')
+            jit_runs += jit
     lines = ['# The live node at a 1 kHz IMU (issue 22, must-show 4 and 5)', '',
              f'Command: `python bench/node_load.py --rate {args.rate:.0f} --seconds '
              f'{args.seconds:.0f} --window {args.window:.0f} --filters {args.filters}` on '
@@ -236,7 +246,7 @@ def main(argv=None):
              'listener process minus its header stamp (the input message\'s: publication, '
              'transport both ways and the node\'s work).', '',
              '| filter | node CPU (cores) | outputs / s | latency p50 ms | p99 ms | max ms | '
-             'launch to first output s | numba cache at launch |',
+             'launch to first output s | kernels at launch |',
              '|---|---|---|---|---|---|---|---|']
     for f, r in results.items():
         lines.append(f'| {f} | {r["cpu"]:.3f} | {r["rate"]:.0f} | {r["p50"]:.2f} | '
