@@ -53,10 +53,17 @@ def _run(no_jit, no_aot=False):
     return json.loads(out.strip().splitlines()[-1])
 
 
+@pytest.fixture(scope='module')
+def reference():
+    """Every filter in plain Python (the slow run, made once for both compiled paths)."""
+    return _run(True)
+
+
 @pytest.mark.skipif(not kernels.COMPILED, reason='numba not installed or switched off')
 @pytest.mark.parametrize('no_aot', [False, True], ids=['ahead-of-time', 'just-in-time'])
-def test_every_fine_filter_gives_the_same_result_compiled_and_in_pure_python(no_aot):
-    ref, fast = _run(True), _run(False, no_aot)
+def test_every_fine_filter_gives_the_same_result_compiled_and_in_pure_python(no_aot,
+                                                                             reference):
+    ref, fast = dict(reference), _run(False, no_aot)
     assert ref.pop('compiled') is False and fast.pop('compiled') is True
     assert ref.pop('aot') is False and fast.pop('aot') is (kernels.AOT is not None and not no_aot)
     for f in CASES:
