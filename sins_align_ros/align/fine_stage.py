@@ -1,4 +1,7 @@
-"""The fine stage: an engine stepped at IMU rate, its GNSS epochs, convergence, rows.
+"""The fine stage: an engine stepped at IMU rate, its epochs, convergence, rows.
+
+The epochs themselves (GNSS, external heading, the consistency remedy) are
+:mod:`.fine_epochs`.
 
 Two ways of stepping, by the engine's kind: the stationary engine mechanizes whole
 blocks between its own filter epochs (vectorised); the GNSS-aided engines step
@@ -40,6 +43,7 @@ from .aided import ANGLE_UNKNOWN_VAR, cap_angles
 from .consistency import ConsistencyMonitor
 from .convergence import ConvergenceMonitor
 from .expectation import SigmaHistory
+from .fine_epochs import EpochUpdates
 from .gnss_gate import FilterDiverged
 from .output import Rows, one_row
 
@@ -56,7 +60,7 @@ class Clock:
         self.t_last = None
 
 
-class FineStage:
+class FineStage(EpochUpdates):
     """One engine from the end of coarse alignment on; see the module docstring.
 
     ``floor`` (3,) variances (rad^2) added to the engine's attitude covariance;
@@ -313,75 +317,3 @@ class FineStage:
             m = eng.mech
             nav = np.array([[m.lat, m.lon, m.h, m.v_n[0], m.v_n[1], m.v_n[2]]])
         return one_row(t, C, self.attitude_cov(), self.phase, nav), None
-
-    def _heading_due_index(self, t, k):
-        """Index of the sample of ``t`` (from ``k``) an external heading is due at, or None."""
-        return None if self.headings is None else self.headings.next_due_index(t, k)
-
-    def _apply_epochs(self, t_now, gnss, dtheta, dt):
-        """Apply the GNSS epochs, then the external headings, due at ``t_now``; the reason."""
-        reason = self._apply_gnss(t_now, gnss, dtheta, dt)
-        if reason is None and self.headings is not None:
-            reason = self._apply_heading(t_now, dtheta, dt)
-        return reason
-
-    def _apply_heading(self, t_now, dtheta, dt):
-        """Give the engine the queued external headings up to ``t_now``; the reason if it diverged.
-
-        ``dtheta`` (3,) rad over ``dt`` s: the sample's rate carries the yaw from the
-        epoch's stamp to ``t_now``. A heading measured makes the heading known, whatever
-        the gyros can see (:attr:`heading_known`). Not checked by the consistency monitor
-        (its gate rejects outliers): the monitor's remedies are for the GNSS model.
-        """
-        while True:
-            fix = self.headings.pop_due(t_now, self.t0)
-            if fix is None:
-                return None
-            w_up = float(self.engine.mech.C_b_n[2] @ np.asarray(dtheta)) / max(float(dt), 1e-6)
-            try:
-                result = self.engine.update_heading(fix, t_now, w_up)
-            except FilterDiverged as exc:
-                return str(exc)
-            self.headings.counts[result] += 1
-            if result != 'rejected':
-                self.heading_known = True
-            self._epoch_done(t_now)
-
-    def _apply_gnss(self, t_now, gnss, dtheta, dt):
-        """Give the engine every queued epoch up to ``t_now``; the reason if it diverged.
-
-        ``dtheta`` (3,) rad and ``dt`` s: the increment of the sample at ``t_now`` (its rate
-        moves the epochs from the antenna to the IMU, :mod:`.installation`).
-        """
-        while True:
-            fix = gnss.pop_due(t_now, self.t0)
-            if fix is None:
-                return None
-            if self.install is not None and not self.install.no_arm:
-                dt = max(float(dt), 1e-6)
-                fix = self.install.fix_to_imu(fix, self.engine.mech.C_b_n,
-                                              np.asarray(dtheta) / dt, self.attitude_cov(),
-                                              self.rate_var(dt))
-            try:
-                upd = self.engine.update(fix, t_now)
-            except FilterDiverged as exc:
-                return str(exc)
-            gnss.used(fix)
-            if upd is not None:
-                eng = self.engine
-                # white excess innovations (a noisier receiver) are answered by the
-                # engine's R where it sets R, by the filter's own R posterior in the VB
-                # family (no remedy from here), and for ASCKF, whose Sage-Husa R learns
-                # only on epochs R dominates, by the state's inflation like every failure
-                vb = getattr(eng.kf, 'estimates_R', False)
-                factor = self.consistency.add(eng.last_nis, eng.last_dof, eng.last_u,
-                                              eng.last_rows if eng.sets_R or vb else None,
-                                              rejected=bool(eng.kf.rejected),
-                                              noise_remedy=eng.sets_R)
-                if factor is not None:
-                    eng.inflate(factor)
-                if self.consistency.r_factors:
-                    eng.inflate_noise(self.consistency.r_factors)
-                if self.consistency.relax:
-                    eng.relax()
-            self._epoch_done(t_now)
