@@ -21,8 +21,6 @@ class InstallWithKernels(install):
 
     def run(self):
         super().run()
-        if os.environ.get('SINS_ALIGN_SKIP_AOT') == '1':
-            return
         lib = os.path.abspath(self.install_lib)
         env = dict(os.environ, PYTHONPATH=lib + os.pathsep + os.environ.get('PYTHONPATH', ''))
         done = subprocess.run([sys.executable, '-m', f'{PACKAGE}.nav.aot',

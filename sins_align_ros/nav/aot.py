@@ -22,7 +22,7 @@ from pathlib import Path
 
 
 def _compile(workdir):
-    """Compile the exported kernels into ``workdir``; returns the module file's path."""
+    """Compile the exported kernels into ``workdir``; returns ``(module file, source hash)``."""
     os.environ['SINS_ALIGN_AOT_BUILD'] = '1'
     import warnings
     from numba.pycc import CC
