@@ -115,14 +115,22 @@ import sys
 sys.path.insert(0, {root!r})
 from sins_align_ros.cli import replay  # noqa: F401  (the replay's and the pipeline's imports)
 from sins_align_ros.nav import kernels
+import numpy as np
+from sins_align_ros.nav.mechanization import Strapdown
 kernels.warm_up()
+z = np.zeros((2500, 3))                 # past the re-orthonormalisation every 1000 samples
+Strapdown(np.eye(3), np.zeros(3), 0.8, 0.0, 0.0).run(z, z, 0.01)
 print(kernels.AOT is not None, 'numba' in sys.modules, 'scipy.linalg' in sys.modules)
 """
 
 
 @pytest.mark.skipif(shutil.which('cc') is None, reason='no C compiler: no ahead-of-time build')
 def test_setup_built_the_ahead_of_time_kernels_and_a_replay_imports_neither_numba_nor_scipy():
-    """Issue 22: numba's import and first call (with scipy.linalg) were 0.7 s of each start."""
+    """Issue 22: numba's import and first call (with scipy.linalg) were 0.7 s of each start.
+
+    LAPACK inside a compiled kernel (an SVD) imports scipy.linalg at its first call,
+    0.15 s: hence the 2500 samples.
+    """
     assert kernels.AOT is not None, 'scripts/setup.sh did not build nav/_aot_kernels'
     assert {name for name, _, _ in kernels.EXPORTS} <= set(dir(kernels.AOT))
     out = subprocess.run([sys.executable, '-c', IMPORTS.format(root=str(ROOT))], check=True,

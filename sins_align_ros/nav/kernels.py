@@ -166,6 +166,32 @@ def _rodrigues(x, y, z, R):
     R[2, 0], R[2, 1], R[2, 2] = r[6], r[7], r[8]
 
 
+@jit
+def _reorthonormalise(C, T):
+    """Make the nearly orthonormal ``C`` (3, 3) orthonormal in place; ``T`` (3, 3) scratch.
+
+    Newton-Schulz steps toward the polar factor, ``C <- C (3 I - C^T C) / 2``: each squares
+    the departure from orthonormality, so the 1e-13 that 1000 products of rotations gather
+    is gone to round-off in two; the same matrix as the SVD's ``U V^T`` to 1e-16. Not the
+    SVD because LAPACK inside compiled code makes numba import ``scipy.linalg`` (0.15 s of
+    a replay's start).
+    """
+    for _ in range(4):
+        err = 0.0
+        for i in range(3):
+            for j in range(3):
+                d = C[0, i] * C[0, j] + C[1, i] * C[1, j] + C[2, i] * C[2, j]
+                err = max(err, abs(d - 1.0) if i == j else abs(d))
+                T[i, j] = 0.5 * ((3.0 if i == j else 0.0) - d)
+        if err < 1e-15:
+            return
+        for i in range(3):
+            a, b, c = C[i, 0], C[i, 1], C[i, 2]
+            C[i, 0] = a * T[0, 0] + b * T[1, 0] + c * T[2, 0]
+            C[i, 1] = a * T[0, 1] + b * T[1, 1] + c * T[2, 1]
+            C[i, 2] = a * T[0, 2] + b * T[1, 2] + c * T[2, 2]
+
+
 @jit(sig='UniTuple(f8, 6)(f8, f8, b1, f8[:])')
 def earth_terms(lat, h, cached, ec):
     """``(sin, cos, tan, R_M, R_N, g)`` at ``lat``, ``h``; ``cached``: through ``ec`` (8,).
@@ -294,8 +320,7 @@ def strapdown_run(C, v, v_prev, pos, pos_prev, dth_prev, dv_prev, steps, dtheta,
                 C[i, j] = T[i, 0] * Pm[0, j] + T[i, 1] * Pm[1, j] + T[i, 2] * Pm[2, j]
         steps += 1
         if steps % 1000 == 0:
-            u, _, vt = np.linalg.svd(C)
-            C[:, :] = u @ vt
+            _reorthonormalise(C, T)
         v_prev[0], v_prev[1], v_prev[2] = v0, v1, v2
         v[0], v[1], v[2] = n0, n1, n2
         dth_prev[0], dth_prev[1], dth_prev[2] = ax, ay, az
