@@ -119,3 +119,24 @@ def test_attitude_error_is_seed002_eq3_platform_misalignment():
 def test_wrap_pi():
     assert fr.wrap_pi(np.array([3 * np.pi, -3 * np.pi + 0.1, 0.2])) == pytest.approx(
         [np.pi, -np.pi + 0.1, 0.2])
+
+
+def test_euler_sigma_is_the_propagated_covariance_of_a_small_nav_frame_rotation():
+    """sigma(euler) = sqrt(diag(J P J^T)), J the numerical d(euler)/d(phi) of C -> exp(phi) C."""
+    rng = np.random.default_rng(7)
+    euler = np.column_stack([rng.uniform(-3, 3, 40), rng.uniform(-1.4, 1.4, 40),
+                             rng.uniform(-3, 3, 40)])
+    A = rng.standard_normal((40, 3, 3)) * 1e-3
+    P = A @ A.transpose(0, 2, 1)
+    P[0] = np.diag([1e-6, -1e-20, 1e-6])            # a negative round-off variance: 0, not NaN
+    sig = fr.euler_sigma(euler, P)
+    h = 1e-7
+    for k in range(40):
+        C = fr.euler_to_dcm(euler[k])
+        J = np.column_stack([fr.wrap_pi(fr.dcm_to_euler(fr.rotvec_to_dcm(h * e) @ C) - euler[k])
+                             / h for e in np.eye(3)])
+        want = np.sqrt(np.clip(np.diag(J @ P[k] @ J.T), 0.0, None))
+        assert np.allclose(sig[k], want, rtol=1e-5, atol=1e-9)
+        assert np.allclose(fr.euler_sigma_one(euler[k], P[k].tolist()), sig[k], rtol=1e-12)
+        cov = fr.euler_cov_from_phi_cov(euler[k], P[k])
+        assert np.allclose(np.sqrt(np.clip(np.diag(cov), 0.0, None)), sig[k], rtol=1e-12)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..nav.frames import dcm_to_euler, dcm_to_quat, euler_cov_from_phi_cov, euler_sigma_one
+from ..nav.frames import dcm_to_euler, dcm_to_quat, euler_sigma, euler_sigma_one
 
 
 @dataclass
@@ -141,8 +141,7 @@ def convert(parts):
         P = np.concatenate([np.broadcast_to(r.P_phi, (len(r.t), 3, 3)) for r in run])
         ph = np.concatenate([np.full(len(r.t), r.phase, dtype=object) for r in run])
         eul = dcm_to_euler(C)
-        P_e = euler_cov_from_phi_cov(eul, P)
-        sig = np.sqrt(np.clip(np.diagonal(P_e, axis1=1, axis2=2), 0.0, None))
+        sig = euler_sigma(eul, P)
         done.append(Output(t, dcm_to_quat(C), eul, sig, P, ph, concat_nav(run)))
         run.clear()
 

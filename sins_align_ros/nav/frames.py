@@ -390,6 +390,26 @@ def euler_sigma_one(euler, P_phi):
     return np.array(out)
 
 
+def euler_sigma(euler, P_phi):
+    """1-sigma of REP-103 Euler angles (N, 3) from ``euler`` (N, 3) and ``P_phi`` (N, 3, 3).
+
+    ``sqrt(diag(euler_cov_from_phi_cov(euler, P_phi)))`` row by row (negative round-off
+    variances give 0), without forming the (N, 3, 3) product: the quadratic form of each
+    row of the Jacobian, elementwise (a replay's 120,000 rows in a few ms).
+    """
+    p, y = euler[:, 1], euler[:, 2]
+    cy, sy, cp, sp = np.cos(y), np.sin(y), np.cos(p), np.sin(p)
+    P = [[P_phi[:, i, j] for j in range(3)] for i in range(3)]
+    rows = ((cy / cp, sy / cp, 0.0), (-sy, cy, 0.0), (cy * sp / cp, sy * sp / cp, 1.0))
+    out = np.empty((len(euler), 3))
+    for k, (a, b, c) in enumerate(rows):
+        v = (a * (a * P[0][0] + b * P[0][1] + c * P[0][2])
+             + b * (a * P[1][0] + b * P[1][1] + c * P[1][2])
+             + c * (a * P[2][0] + b * P[2][1] + c * P[2][2]))
+        out[:, k] = np.sqrt(np.clip(v, 0.0, None))
+    return out
+
+
 def euler_cov_from_phi_cov(euler, P_phi):
     """Covariance of REP-103 Euler angles from a nav-frame misalignment covariance.
 
