@@ -172,6 +172,8 @@ class ASCKF:
             self.lam = np.minimum(self.lam, cap)
         self.faded = bool(np.any(self.lam > 1.0))
         self.n_faded += self.faded
+        if not self.faded:      # every factor 1: eq. 35 is the un-faded S_l, bit for bit
+            return S_l
         lam_sqrt = StrongTracking.sqrt_factors(self.lam)                         # eq. 17
         return tria(np.hstack([lam_sqrt[:, None] * chi_star, SQ]))                # eq. 35
 
@@ -198,8 +200,9 @@ class ASCKF:
         self.faded, self.white = False, True
         self.rejected = False
         # the update from the un-faded prediction: the gate's and the fading's input
-        probe = (srckf_update(xp, S_l, z, hx, SR)[2]
-                 if max_nis is not None or self.fading else None)
+        unfaded = (srckf_update(xp, S_l, z, hx, SR)
+                   if max_nis is not None or self.fading else None)
+        probe = None if unfaded is None else unfaded[2]
         if max_nis is not None and nis(probe.y, probe.Pzz) > max_nis:
             self.x, self.S, self.rejected, self.last = xp, S_l, True, probe
             if self.adaptive:
@@ -209,7 +212,10 @@ class ASCKF:
             S_p = self._faded_sqrt(S_l, chi_star, SQ, probe, idx)
         else:
             S_p = S_l
-        self.x, self.S, upd = srckf_update(xp, S_p, z, hx, SR)                   # eq. 28-38
+        if S_p is S_l and unfaded is not None:     # not faded: the probe is the update
+            self.x, self.S, upd = unfaded
+        else:
+            self.x, self.S, upd = srckf_update(xp, S_p, z, hx, SR)               # eq. 28-38
         if self.adaptive and self.white:
             self.Q, self.R = self.noise.update(upd, idx, self.R_lent)            # eq. 39, 20
         self.last = upd
