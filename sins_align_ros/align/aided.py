@@ -27,6 +27,7 @@ import numpy as np
 
 from ..filters.cubature import batched
 from ..filters.kf import nis
+from ..nav import kernels
 from ..nav.mechanization import MechanizationOptions, Strapdown
 from ..units import DPH, UG
 from .force import ForceModel
@@ -38,6 +39,8 @@ MAX_PREDICT = 2.0
 #: samples looked ahead at a time by :meth:`GnssAidedEngine.step_block` for the next
 #: prediction (bounds its work on a long stretch without GNSS)
 STRETCH = 4096
+#: what the interval-sum kernel is given for ``C_sum`` when it keeps none (not written)
+_NO_C_SUM = np.zeros((3, 3))
 #: variance of an angle known to be anywhere in (-pi, pi] (uniform), rad^2
 ANGLE_UNKNOWN_VAR = math.pi ** 2 / 3.0
 #: seconds over which an inflation's process-noise floor would add the state's variance
@@ -139,12 +142,10 @@ class IntervalSums:
         ``out``: :meth:`~sins_align_ros.nav.mechanization.Strapdown.run`'s record of them;
         ``dt`` (N,) their intervals.
         """
-        self.T = float(np.cumsum(np.concatenate(([self.T], dt)))[-1])
-        self.dv_sum = np.cumsum(np.vstack([self.dv_sum, out['dv_sf']]), axis=0)[-1]
-        self.v_sum = np.cumsum(np.vstack([self.v_sum, out['v_n'] * dt[:, None]]), axis=0)[-1]
-        if self.attitude:
-            self.C_sum = np.cumsum(np.concatenate(
-                [self.C_sum[None], out['C_b_n'] * dt[:, None, None]]), axis=0)[-1]
+        self.T = kernels.interval_sums(
+            self.T, self.dv_sum, self.v_sum, self.C_sum if self.attitude else _NO_C_SUM,
+            self.attitude, out['dv_sf'], out['v_n'], out['C_b_n'],
+            np.require(dt, float, ['C', 'W']))
 
 
 @dataclass

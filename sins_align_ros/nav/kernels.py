@@ -331,6 +331,28 @@ def strapdown_run(C, v, v_prev, pos, pos_prev, dth_prev, dv_prev, steps, dtheta,
     return steps
 
 
+@jit(sig='f8(f8, f8[:], f8[:], f8[:, :], b1, f8[:, :], f8[:, :], f8[:, :, :], f8[:])')
+def interval_sums(T, dv_sum, v_sum, C_sum, attitude, dv_sf, v_n, C, dt):
+    """Add N mechanized samples to a filter interval's sums in place; return the new ``T``.
+
+    ``dv_sum``, ``v_sum`` (3,) and, with ``attitude``, ``C_sum`` (3, 3) gain each sample's
+    ``dv_sf``, ``v_n dt`` and ``C dt`` (``dv_sf``, ``v_n`` (N, 3), ``C`` (N, 3, 3), ``dt``
+    (N,)) one after the other, the order of a sample-by-sample sum, so a block and its
+    samples added singly agree bit for bit (``align.aided.IntervalSums``).
+    """
+    for k in range(len(dt)):
+        h = dt[k]
+        T += h
+        for i in range(3):
+            dv_sum[i] += dv_sf[k, i]
+            v_sum[i] += v_n[k, i] * h
+        if attitude:
+            for i in range(3):
+                for j in range(3):
+                    C_sum[i, j] += C[k, i, j] * h
+    return T
+
+
 @jit(sig='void(f8[:, :], f8[:, :, :])')
 def attitude_increments(dtheta, out):
     """``C_b(t_k)^{b0}`` for k = 1..N into ``out`` (N, 3, 3), from ``dtheta`` (N, 3) rad.
@@ -374,6 +396,9 @@ def warm_up():
                       np.array([0.5, 0.0, 0.0]), np.zeros(3), np.zeros(3), 0, z, z,
                       np.full(2, 0.01), True, True, True, False, cached, np.full(8, np.nan),
                       np.empty((2, 3, 3)), np.empty((2, 3)), np.empty((2, 3)), np.empty((2, 3)))
+    z3 = np.zeros(3)
+    interval_sums(0.0, z3, z3.copy(), np.zeros((3, 3)), True, z, z, np.empty((2, 3, 3)),
+                  np.full(2, 0.01))
     for first_calls in _WARM_UPS:
         first_calls()
     return time.perf_counter() - t0
