@@ -245,6 +245,31 @@ def test_a_dropped_horizontal_force_becomes_velocity_noise():
     assert np.all(np.delete(dq, k[:2]) == 0.0)
 
 
+def test_F_entries_are_the_seeds_block_products_under_the_metre_position_variables():
+    """F_matrix entry by entry against the blocks of seed 001 eq. 1 assembled as products."""
+    rng = np.random.default_rng(11)
+    for _ in range(20):
+        C = euler_to_dcm(rng.uniform(-3, 3, 3) * [0.3, 0.3, 1.0])
+        f_n, v_n = rng.normal(0, 2, 3) + [0, 0, 9.8], rng.normal(0, 50, 3)
+        lat, h, tau_g, tau_a = rng.uniform(-1.4, 1.4), rng.uniform(-100, 9000), 300.0, 3600.0
+        Maa, Mav, Map, Mva, Mvv, Mvp, Mpv, Mpp = lc._blocks(f_n, v_n, lat, h)
+        D = lc.D_pos(lat, h)
+        Di = np.linalg.inv(D)
+        for n, i_eps, i_nab in ((15, [9], 12), (18, [9, 12], 15)):
+            want = np.zeros((n, n))
+            want[:9, :9] = np.block([[Maa, Mav, Map @ Di], [Mva, Mvv, Mvp @ Di],
+                                     [np.zeros((3, 3)), D @ Mpv, D @ Mpp @ Di]])
+            for i in i_eps:
+                want[0:3, i:i + 3] = -C
+            want[3:6, i_nab:i_nab + 3] = C
+            k = np.arange(3)
+            want[n - 6 + k, n - 6 + k] = -1.0 / tau_g
+            want[i_nab + k, i_nab + k] = -1.0 / tau_a
+            F = lc.F_matrix(C, f_n, v_n, lat, h, tau_g, tau_a, n_states=n)
+            scale = np.maximum(np.abs(want), 1e-300)
+            assert np.all(np.abs(F - want) <= 1e-12 * scale + 1e-22), (n, np.abs(F - want).max())
+
+
 def test_a_block_of_samples_does_what_the_samples_one_at_a_time_do():
     """step_block (compiled mechanization and interval sums) against step_imu, sample by sample.
 

@@ -46,7 +46,7 @@ import math
 import numpy as np
 
 from . import large_misalignment as lm
-from ..nav import earth
+from ..nav import earth, kernels
 from ..nav.frames import skew
 
 I_PHI, I_V, I_P = slice(0, 3), slice(3, 6), slice(6, 9)
@@ -109,35 +109,76 @@ def F_matrix(C_b_n, f_n, v_n, lat, h, tau_g, tau_a, n_states=15):
     ``C_b_n`` (3, 3) attitude, ``f_n`` (3,) specific force in ENU, ``v_n`` (3,) ENU
     velocity, ``lat`` (rad), ``h`` (m); ``tau_g``, ``tau_a``: correlation times (s) of
     the Markov gyro and accelerometer errors (``inf``: random constants).
-    ``n_states`` 15 or 18.
+    ``n_states`` 15 or 18. The blocks of :func:`_blocks` under the change of position
+    variables :func:`D_pos` (``M_p D^-1``, ``D M_pv``, ``D M_pp D^-1``), written out
+    entry by entry in :func:`_fill_F` (a filter epoch's cost; test_navigation holds it
+    to the block products).
     """
-    Maa, Mav, Map, Mva, Mvv, Mvp, Mpv, Mpp = _blocks(f_n, v_n, lat, h)
-    D = D_pos(lat, h)
-    Di = np.linalg.inv(D)
-    F = np.zeros((n_states, n_states))
-    F[I_PHI, I_PHI] = Maa
-    F[I_PHI, I_V] = Mav
-    F[I_PHI, I_P] = Map @ Di
-    F[I_V, I_PHI] = Mva
-    F[I_V, I_V] = Mvv
-    F[I_V, I_P] = Mvp @ Di
-    F[I_P, I_V] = D @ Mpv
-    F[I_P, I_P] = D @ Mpp @ Di
-    ig, ia = 1.0 / tau_g, 1.0 / tau_a
-    if n_states == 15:
-        F[I_PHI, I_EPS15] = -C_b_n
-        F[I_V, I_NAB15] = C_b_n
-        F[I_EPS15, I_EPS15] = -ig * np.eye(3)
-        F[I_NAB15, I_NAB15] = -ia * np.eye(3)
-    elif n_states == 18:
-        F[I_PHI, I_EPSB] = -C_b_n
-        F[I_PHI, I_EPSR] = -C_b_n
-        F[I_V, I_NAB18] = C_b_n
-        F[I_EPSR, I_EPSR] = -ig * np.eye(3)
-        F[I_NAB18, I_NAB18] = -ia * np.eye(3)
-    else:
+    if n_states not in (15, 18):
         raise ValueError(f'n_states must be 15 or 18, not {n_states}')
+    F = np.zeros((n_states, n_states))
+    _fill_F(F, np.require(C_b_n, float, ['C', 'W']), np.require(f_n, float, ['C', 'W']),
+            np.require(v_n, float, ['C', 'W']), float(lat), float(h), 1.0 / tau_g,
+            1.0 / tau_a)
     return F
+
+
+@kernels.jit(sig='void(f8[:, :], f8[:, :], f8[:], f8[:], f8, f8, f8, f8)')
+def _fill_F(F, C, f, v, lat, h, ig, ia):
+    """Write :func:`F_matrix`'s non-zero entries into the zeroed ``F`` (15 or 18 square).
+
+    ``ig``, ``ia``: the inverse correlation times. Position rows and columns are in
+    metres (``D_pos``): ``D M_pv = I`` and the ``(dL, dlambda)`` columns scale by
+    ``1 / (R_M + h)`` and ``1 / ((R_N + h) cos L)``.
+    """
+    R_M, R_N = kernels._radii(lat)
+    Rm, Rn = R_M + h, R_N + h
+    vE, vN, vU = v[0], v[1], v[2]
+    sL, cL = math.sin(lat), math.cos(lat)
+    tL, secL = sL / cL, 1.0 / cL
+    W = earth.OMEGA_IE
+    a0, a1, a2 = -vN / Rm, W * cL + vE / Rn, W * sL + vE * tL / Rn       # w_ie + w_en
+    b1, b2 = a1 + W * cL, a2 + W * sL                                    # 2 w_ie + w_en
+    # phi rows: -[w_in x], d(w_en)/d(dV), (d(w_ie) + d(w_en))/dp
+    F[0, 1], F[0, 2], F[1, 0], F[1, 2], F[2, 0], F[2, 1] = a2, -a1, -a2, a0, a1, -a0
+    F[0, 4], F[1, 3], F[2, 3] = -1.0 / Rm, 1.0 / Rn, tL / Rn
+    F[1, 7] = -W * sL / Rm
+    F[2, 7] = (W * cL + vE * secL * secL / Rn) / Rm
+    F[0, 8], F[1, 8], F[2, 8] = vN / Rm ** 2, -vE / Rn ** 2, -vE * tL / Rn ** 2
+    # dV rows: [f x], [V x] d(w_en)/d(dV) - [(2 w_ie + w_en) x], [V x] (2 d(w_ie) + d(w_en))
+    F[3, 1], F[3, 2], F[4, 0], F[4, 2], F[5, 0], F[5, 1] = -f[2], f[1], f[2], -f[0], -f[1], f[0]
+    F[3, 3], F[3, 4], F[3, 5] = (vN * tL - vU) / Rn, b2, -b1
+    F[4, 3], F[4, 4], F[4, 5] = -vE * tL / Rn - b2, -vU / Rm, a0
+    F[5, 3], F[5, 4] = vE / Rn + b1, vN / Rm - a0
+    c0 = 2.0 * W * cL + vE * secL * secL / Rn
+    F[3, 7] = (2.0 * W * sL * vU + vN * c0) / Rm
+    F[4, 7] = -vE * c0 / Rm
+    F[5, 7] = -2.0 * W * sL * vE / Rm
+    F[3, 8] = (vU * vE - vN * vE * tL) / Rn ** 2
+    F[4, 8] = vU * vN / Rm ** 2 + vE * vE * tL / Rn ** 2
+    # normal gravity falls with height: the computed vertical acceleration gains 2 g / R dh
+    F[5, 8] = (-vN * vN / Rm ** 2 - vE * vE / Rn ** 2
+               + 2.0 * kernels._gravity(lat, h) / math.sqrt(R_M * R_N))
+    # dp rows
+    F[6, 3], F[7, 4], F[8, 5] = 1.0, 1.0, 1.0
+    F[6, 7], F[6, 8], F[7, 8] = vE * tL / Rm, -vE / Rn, -vN / Rm
+    # sensor errors: gyro drift(s) on the attitude, accelerometer error on the velocity
+    n = F.shape[0]
+    i_nab = n - 3
+    for i in range(3):
+        for j in range(3):
+            F[i, 9 + j] = -C[i, j]
+            F[3 + i, i_nab + j] = C[i, j]
+            if n == 18:
+                F[i, 12 + j] = -C[i, j]
+        F[n - 6 + i, n - 6 + i] = -ig
+        F[i_nab + i, i_nab + i] = -ia
+
+
+@kernels.warms_up
+def _first_calls():
+    for n in (15, 18):
+        F_matrix(np.eye(3), np.zeros(3), np.zeros(3), 0.5, 0.0, 1.0, 1.0, n)
 
 
 def transition(F, T):

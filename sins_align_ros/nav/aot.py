@@ -29,7 +29,7 @@ def _compile(workdir):
 
     from ..filters import cubature  # noqa: F401 (their kernels join EXPORTS on import)
     from ..io import fixed_text  # noqa: F401
-    from ..models import large_azimuth  # noqa: F401
+    from ..models import large_azimuth, loosely_coupled  # noqa: F401
     from . import kernels
     assert kernels.BUILDING_AOT and kernels.AOT is None
     cc = CC(kernels.AOT_MODULE)

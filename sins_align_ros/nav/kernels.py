@@ -37,7 +37,7 @@ from .earth import A, E2, G_EQUATOR, K_SOMIGLIANA, OMEGA_IE
 
 #: the kernels' sources (package-relative): what the ahead-of-time module is built from
 AOT_SOURCES = ('nav/kernels.py', 'nav/earth.py', 'filters/cubature.py',
-               'models/large_azimuth.py', 'io/fixed_text.py')
+               'models/large_azimuth.py', 'models/loosely_coupled.py', 'io/fixed_text.py')
 #: the ahead-of-time module's name (in this package) and its source hash file
 AOT_MODULE = '_aot_kernels'
 _PACKAGE = Path(__file__).resolve().parents[1]
