@@ -188,7 +188,7 @@ class IntegratedNavigation(GnssAidedEngine):
         self.eps_const = np.zeros(3)
         self.eps_markov = np.zeros(3)
         self.nab = np.zeros(3)
-        self._F = None
+        self._F = self._Phi = None
         super().__init__(C_b_n, v_n, lat, lon, h, kf, Qc, R, rows=lc.MEAS_STATES,
                          gate=GnssGate(gate_probability, gate_max_rejects, sizes=(3, 6)),
                          use_velocity=use_velocity, attitude_sums=True)
@@ -209,19 +209,20 @@ class IntegratedNavigation(GnssAidedEngine):
         s = self.sums
         T = s.T
         if T <= 0.0:
-            self._F = np.zeros((self.n, self.n))
-            return linear(np.eye(self.n))
+            self._F, self._Phi = np.zeros((self.n, self.n)), np.eye(self.n)
+            return linear(self._Phi)
         f_n, v_n, C = s.dv_sum / T, s.v_sum / T, s.C_sum / T
         C = orthonormalize(C)
         m = self.mech
         if self.method != 'ukf':
             f_n = self._model_force(f_n, m.lat, m.h)
         self._F = lc.F_matrix(C, f_n, v_n, m.lat, m.h, self.tau_g, self.tau_a, self.n)
+        self._Phi = lc.transition(self._F, T)
         if self.method == 'ukf':
             sub = max(1, int(math.ceil(T / 1.0)))
             args = (f_n, v_n, C, m.lat, m.h, self.tau_g, self.tau_a, T)
             return batched(lambda X: lc.propagate18(X, *args, substeps=sub))
-        return linear(lc.transition(self._F, T))
+        return linear(self._Phi)
 
     def _interval_ended_bound(self):
         """Hold a linear filter's heading variance within the model's range (module docstring)."""
@@ -277,9 +278,13 @@ class IntegratedNavigation(GnssAidedEngine):
     def _set_process_noise(self):
         """Q of the interval: trapezoid of ``Phi Qc Phi^T`` and ``Qc`` over its length T."""
         T = max(self.sums.T, 1e-3)
-        Qc = np.diag(self.Qc)
-        Phi = lc.transition(self._F, T) if self._F is not None else np.eye(self.n)
-        Q = 0.5 * (Phi @ Qc @ Phi.T + Qc) * T
+        if self._F is None:
+            Phi = np.eye(self.n)
+        elif T == self.sums.T:      # the interval's transition, as _transition made it
+            Phi = self._Phi
+        else:
+            Phi = lc.transition(self._F, T)
+        Q = 0.5 * ((Phi * self.Qc) @ Phi.T + np.diag(self.Qc)) * T
         E = self._force_noise(T)             # a dropped horizontal force (:mod:`.force`)
         if E is not None:
             Q = Q + E
