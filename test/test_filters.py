@@ -336,3 +336,21 @@ def test_chi2_quantile_equals_scipy_and_the_closed_forms():
     assert gamma_q(1.0, 7.0) == pytest.approx(np.exp(-7.0), rel=1e-13)
     with pytest.raises(ValueError):
         chi2_quantile(1.0, 3)
+
+
+def test_sqrt_psd_roots_definite_semidefinite_and_diagonal_matrices():
+    """L L^T = A for every kind of A the filters give it (a negative round-off clipped)."""
+    from sins_align_ros.filters.cubature import sqrt_psd
+    rng = np.random.default_rng(5)
+    B = rng.standard_normal((6, 4))
+    cases = [np.diag([1e-12, 0.0, 4.0, 1e-20]),          # diagonal, a state without noise
+             np.diag([1.0, -1e-30, 2.0]),                # a negative round-off variance
+             B @ B.T,                                    # full, rank 4 of 6
+             B @ B.T + np.eye(6)]                        # full, definite
+    for A in cases:
+        L = sqrt_psd(A)
+        assert np.all(np.isfinite(L))
+        want = A.copy()
+        want[np.diag_indices(len(A))] = np.clip(np.diag(A), 0.0, None)
+        assert np.allclose(L @ L.T, want, rtol=1e-12, atol=1e-12 * np.abs(A).max())
+    assert np.array_equal(sqrt_psd(np.diag([4.0, 9.0])), np.linalg.cholesky(np.diag([4.0, 9.0])))

@@ -106,6 +106,11 @@ def sqrt_psd(A):
     it is used (inside ``Tria``), so it need not be triangular.
     """
     A = 0.5 * (A + A.T)
+    d = np.diagonal(A)
+    if np.count_nonzero(A) == np.count_nonzero(d):
+        # diagonal (the usual Q and R): its root directly; Cholesky's where definite, and
+        # no failed factorisation and eigen-decomposition where a state has no noise
+        return np.diag(np.sqrt(np.clip(d, 0.0, None)))
     try:
         return np.linalg.cholesky(A)
     except np.linalg.LinAlgError:
