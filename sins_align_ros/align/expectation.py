@@ -193,6 +193,11 @@ class Forecaster:
     def expect(self, p):
         """Return the :class:`Expectation` of pipeline ``p`` (an ``AlignmentPipeline``) now."""
         fine = p.fine
+        if fine is not None and fine.mounting_doubt:
+            return Expectation(math.inf, math.inf, np.sqrt(np.diag(fine.attitude_cov())),
+                               TREND if p.aided else STILL,
+                               'never aligned: the vehicle frame is far from level '
+                               '(imu_mounting_rpy_deg untold? the self-check\'s warning)')
         if fine is not None and fine.phase == 'aligned':
             return Expectation(_t_first_aligned(fine, p), _t_first_aligned(fine, p),
                                np.sqrt(np.diag(fine.attitude_cov())), DONE)

@@ -32,6 +32,11 @@ rest tilt and bias stay one (seed 002 eq. 15: a / g), however much its heading w
 (a GNSS-aided VBCH on a still MEMS IMU reported 14' of tilt under a 17' bias bound while
 50' off, the wandering heading having "separated" them).
 
+Where the self-check's mounting check finds the vehicle frame far from level
+(:attr:`~.self_check.SelfCheck.mounting_doubt`: an IMU mounted rotated and untold), the
+attitude is the IMU's, not the vehicle's: all three angles are published with the
+variance of an unknown angle and the stage is never ``aligned``.
+
 A filter failure (:class:`~.gnss_gate.FilterDiverged`) ends the stage: the methods
 return its reason and the pipeline restarts from coarse alignment.
 """
@@ -102,6 +107,9 @@ class FineStage(EpochUpdates):
         self.consistency = ConsistencyMonitor()
         #: the navigation solution goes out with the rows (``~/odom``)
         self.navigating = engine.navigates and cfg['continue_navigation']
+        #: why the vehicle frame cannot be the told one (the self-check's mounting check):
+        #: then the attitude is published as unknown and the stage is never ``aligned``
+        self.mounting_doubt = ''
         self._att_cov = None
 
     @property
@@ -119,7 +127,9 @@ class FineStage(EpochUpdates):
         """Misalignment covariance about ENU (3, 3) with the floor; cached between epochs."""
         if self._att_cov is None:
             P = self.engine.attitude_cov() + np.diag(self.floor)
-            if not self.heading_known:
+            if self.mounting_doubt:       # the IMU's attitude, not the vehicle's
+                P = np.diag(np.full(3, ANGLE_UNKNOWN_VAR))
+            elif not self.heading_known:
                 P = P.copy()
                 P[2, :2] = P[:2, 2] = 0.0
                 P[2, 2] = HEADING_UNKNOWN_VAR
@@ -149,6 +159,8 @@ class FineStage(EpochUpdates):
     def _ready_reason(self):
         """Return why the attitude is not good enough for ``aligned`` ('' when it is)."""
         tilt, heading = self.readiness()
+        if self.mounting_doubt:
+            return 'vehicle frame far from level: imu_mounting_rpy_deg untold? (self-check)'
         if not self.heading_known:
             return 'heading unobservable'
         why = []

@@ -96,6 +96,8 @@ def hand_over(window, cfg, noise, clock, gnss, headings, install):
     fine, engine_warnings = fine_stage_for(res, cfg, noise, bool(gnss.vels), heading_known,
                                            heading_measured, clock, install, headings)
     warnings.extend(engine_warnings)
+    if check is not None:
+        fine.mounting_doubt = check.mounting_doubt
     return FineStart(cfg, noise, aided, position, position_source, check, coarse_info,
                      heading_measured, warnings, fine, install), None
 

@@ -154,6 +154,11 @@ ALIGNMENT_PARAMS = (
           'most this, deg (heading_ready in the diagnostics)', 0.001, 180.0),
     Param('sensor_self_check', True, 'check the configured sensor model against the coarse '
           'window and widen it where the data contradict it (docs/design.md)'),
+    Param('mounting_check_max_tilt_deg', 45.0, 'self-check: a vehicle frame tilted more '
+          'than this in the coarse window (its mean specific force) is taken for an IMU '
+          'mounted rotated with imu_mounting_rpy_deg untold: the attitude is published as '
+          'unknown and never aligned (docs/alignment_node.md, installation); 180 turns the '
+          'check off, deg', 5.0, 180.0),
     Param('gnss_pos_sigma_m', 1.0, 'GNSS horizontal position noise, 1 sigma, m (moving-base '
           'filters; used when a fix reports no covariance or reported covariance is off)',
           0.001, 1000.0),

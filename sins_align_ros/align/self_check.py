@@ -56,6 +56,17 @@ the finding is reported:
   ``zero_velocity_sigma`` when more than :data:`NOISE_RATIO` times larger
   (horizontal; the vertical one widens ``zero_velocity_sigma_up`` for ``stationary12``,
   which measures the vertical velocity: a moored ship's 0.5 m heave moves it at 0.5 m/s).
+* **Mounting** (the vehicle frame is near level): the window's mean specific force, in the
+  vehicle frame the told ``imu_mounting_rpy_deg`` gives, points within
+  ``mounting_check_max_tilt_deg`` (45 deg) of up on any vehicle at rest or under way (a
+  sailing boat heels 30 deg, a steep road is 17 deg; sway and accelerations average out
+  over the window). Beyond it the IMU is mounted rotated and the mounting was not told
+  (robot_localization's test robot reads 90 deg): the attitude found is the IMU's, not
+  ``base_link``'s, and nothing in the data says how the two differ about the vertical.
+  The finding says so, with the roll and pitch a level vehicle would give the mounting;
+  the fine stage then publishes roll, pitch and heading as unknown and is never
+  ``aligned`` (:attr:`SelfCheck.mounting_doubt`). A mounting turned about the vertical
+  only is not seen here.
 * **Heading observability**: a gyro whose bias sigma (after widening) is not small
   against the horizontal Earth rate cannot find north at rest; the result says so
   and the stationary filters publish the heading as unknown.
@@ -141,7 +152,8 @@ class SelfCheck:
     the configured model; ``findings``: one sentence per widened parameter (warnings);
     ``note``: which checks were skipped and why (informational); ``at_rest``: nothing
     says the base moves (as given); ``still``: the window shows no motion either;
-    ``heading_observable``: the gyro can find north at rest;
+    ``heading_observable``: the gyro can find north at rest; ``mounting_doubt``: why the
+    vehicle frame cannot be the told one (the mounting check; '' when it can be);
     ``figures``: the measured bounds for diagnostics.
     """
 
@@ -151,6 +163,7 @@ class SelfCheck:
     at_rest: bool = True
     still: bool = True
     heading_observable: bool = True
+    mounting_doubt: str = ''
     figures: dict = field(default_factory=dict)
 
 
@@ -409,6 +422,7 @@ def check(window, position, cfg, at_rest=True, gnss=None):
     f = dvv / dts[:, None]
     if gnss is not None:
         gnss_check(out, gnss, tt[0] - dts[0], tt[-1], cfg, window)
+    _mounting(out, cfg, dvv.sum(axis=0) / T)
     if not at_rest:
         out.at_rest = out.still = False
         arw = difference_density(w, dt)
@@ -517,6 +531,30 @@ def _gyro_bias_sigma(out, cfg):
     """Return the (widened) gyro bias 1-sigma, constant and varying parts, rad/s."""
     return math.hypot(_model(out, cfg, 'gyro_bias_dph'),
                       _model(out, cfg, 'gyro_bias_instability_dph')) * DPH
+
+
+def _mounting(out, cfg, f_b):
+    """Flag an IMU mounted rotated and untold (module docstring); ``f_b`` (3,) mean force."""
+    g = float(np.linalg.norm(f_b))
+    limit = cfg['mounting_check_max_tilt_deg']
+    if not g > 1.0:                          # no gravity to judge by (or no data)
+        return
+    tilt = math.degrees(math.acos(min(1.0, max(-1.0, f_b[2] / g))))
+    out.figures['vehicle_tilt_deg'] = tilt
+    if tilt <= limit or limit >= 180.0:
+        return
+    roll = round(math.degrees(math.atan2(f_b[1], f_b[2])))
+    pitch = round(math.degrees(math.atan2(-f_b[0], math.hypot(f_b[1], f_b[2]))))
+    told = ', '.join(f'{v:g}' for v in cfg['imu_mounting_rpy_deg'])
+    out.mounting_doubt = (
+        f'the vehicle frame is tilted {tilt:.0f} deg in the coarse window (roll {roll}, '
+        f'pitch {pitch} deg; mounting_check_max_tilt_deg {limit:g}): the IMU is probably '
+        f'mounted rotated and imu_mounting_rpy_deg [{told}] is not its mounting, so the '
+        'attitude found is not base_link\'s: roll, pitch and heading published as unknown, '
+        'never aligned. Set imu_mounting_rpy_deg (for a level vehicle its roll and pitch are '
+        f'about [{roll}, {pitch}], its yaw not seen here), or raise '
+        'mounting_check_max_tilt_deg if the vehicle really is this tilted')
+    out.findings.append(out.mounting_doubt)
 
 
 def _heading(out, cfg, lat):
