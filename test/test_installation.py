@@ -78,8 +78,9 @@ def test_the_mounting_check_takes_a_heeled_vehicle_for_one_and_a_side_mount_for_
 
 
 def test_the_robot_car_with_its_imu_turned_and_untold_is_never_aligned_and_says_why():
-    """seed003_car_rotated told no mounting: before the check, 51/79 deg of tilt
-    error (RMS of 10 runs) under a 37'/39' sigma, aligned in 1 run of 10 (bench/results/installation.md)."""
+    """seed003_car_rotated told no mounting: before the check, 51/79 deg of tilt error
+    (RMS of 10 runs) under a 37'/39' sigma, aligned in 1 run of 10
+    (bench/results/installation.md)."""
     run = run_scenario('seed003_car_rotated', 1000, 'auto', duration=150.0,
                        imu_mounting_rpy_deg=(0.0, 0.0, 0.0))
     p = run.pipeline

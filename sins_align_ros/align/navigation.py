@@ -188,7 +188,7 @@ class IntegratedNavigation(GnssAidedEngine):
         self.eps_const = np.zeros(3)
         self.eps_markov = np.zeros(3)
         self.nab = np.zeros(3)
-        self._F = self._Phi = None
+        self._F = self._Phi = self._T_last = None
         super().__init__(C_b_n, v_n, lat, lon, h, kf, Qc, R, rows=lc.MEAS_STATES,
                          gate=GnssGate(gate_probability, gate_max_rejects, sizes=(3, 6)),
                          use_velocity=use_velocity, attitude_sums=True)
@@ -211,6 +211,7 @@ class IntegratedNavigation(GnssAidedEngine):
         if T <= 0.0:
             self._F, self._Phi = np.zeros((self.n, self.n)), np.eye(self.n)
             return linear(self._Phi)
+        self._T_last = T
         f_n, v_n, C = s.dv_sum / T, s.v_sum / T, s.C_sum / T
         C = orthonormalize(C)
         m = self.mech
@@ -289,6 +290,33 @@ class IntegratedNavigation(GnssAidedEngine):
         if E is not None:
             Q = Q + E
         self.kf.Q = 0.5 * (Q + Q.T)
+
+    def forecast_model(self):
+        """Return the last epoch's linear model, for a covariance forecast (:mod:`.expectation`).
+
+        A dict: ``P`` (n, n) the covariance now; ``Phi``, ``Q`` (n, n) the transition and
+        process noise of the last interval (``T`` s, its motion); ``H`` (m, n), ``R`` (m, m)
+        the last update's measurement rows and noise; ``i_phi`` the attitude states;
+        ``heading_cap`` the heading variance the linear model is held within
+        (:meth:`_interval_ended_bound`, None for the unscented filter) and
+        ``heading_claim`` the variance beyond which the heading is published as unknown
+        (:meth:`attitude_cov`). None before the first GNSS update.
+        """
+        if self._F is None or self.last_rows is None or not self._T_last:
+            return None
+        T = self._T_last
+        Phi = lc.transition(self._F, T)
+        Q = 0.5 * ((Phi * self.Qc) @ Phi.T + np.diag(self.Qc)) * T
+        E = self._force_noise(T)
+        if E is not None:
+            Q = Q + E
+        idx = np.asarray(self.last_rows)
+        H = np.zeros((len(idx), self.n))
+        H[np.arange(len(idx)), self.rows[idx]] = 1.0
+        return dict(P=self.kf.P.copy(), Phi=Phi, Q=0.5 * (Q + Q.T), H=H,
+                    R=np.asarray(self.kf.R)[np.ix_(idx, idx)], T=T, i_phi=self.i_phi,
+                    heading_cap=None if self.method == 'ukf' else HEADING_LINEAR_MAX_VAR,
+                    heading_claim=HEADING_CLAIM_MAX_VAR)
 
     # -- GNSS epochs --------------------------------------------------------------------
     def measurement(self, fix, t_now):
