@@ -17,8 +17,9 @@ predicts without an update, so an outage only widens the covariance.
 ``_set_process_noise``, ``_interval_ended``). Its mixins hold the other jobs: what is
 done to the prior before the first epoch (:class:`PriorShaping`), the consistency
 monitor's remedies (:class:`ConsistencyRemedies`), which horizontal force the model
-may use (:class:`~.force.ForceModel`) and the external heading's epochs
-(:class:`~.heading_update.ExternalHeading`).
+may use (:class:`~.force.ForceModel`), the external heading's epochs
+(:class:`~.heading_update.ExternalHeading`) and each GNSS epoch's measurement noise
+(:class:`~.epoch_noise.EpochNoise`).
 """
 import math
 from dataclasses import dataclass
@@ -30,6 +31,7 @@ from ..filters.kf import nis
 from ..nav import kernels
 from ..nav.mechanization import MechanizationOptions, Strapdown
 from ..units import DPH, UG
+from .epoch_noise import EpochNoise
 from .force import ForceModel
 from .gnss_gate import FilterDiverged
 from .heading_update import ExternalHeading
@@ -268,7 +270,8 @@ class ConsistencyRemedies:
         self.kf.P = P
 
 
-class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHeading):
+class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHeading,
+                      EpochNoise):
     """Mechanization + error-state filter at GNSS epochs; see the module docstring.
 
     Parameters
@@ -451,19 +454,7 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
         rows = self.rows[idx]
         hx = batched(lambda X: X[rows])
         lent = self._set_process_noise()
-        if self.sets_R or self.use_reported_cov:   # (never for an adaptive filter)
-            R = self.R_nominal.copy()
-            if self.use_reported_cov:
-                if fix.pos_var is not None:
-                    R[0, 0], R[1, 1] = fix.pos_var
-                if self.use_velocity and fix.vel_var is not None:
-                    R[2, 2], R[3, 3] = fix.vel_var
-            if self.sets_R:
-                s = np.sqrt(self.R_scale)
-                R = R * np.outer(s, s)
-            if fix.arm_var is not None:
-                R[np.diag_indices(len(R))] += fix.arm_var[self.MEAS_ENU]
-            kf.R = R
+        self._set_epoch_noise(fix)
         arm = self._lend_arm_noise(fix)
         max_nis = self.gate.threshold(len(idx), kf)
         try:
@@ -489,26 +480,6 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
         self.gate.accepted()
         self._feedback(fix)
         return upd
-
-    def _lend_arm_noise(self, fix):
-        """Lend a lever arm's variance to an adaptive filter's R for one epoch (or None).
-
-        The filters that set R take ``fix.arm_var`` into it above; a Sage-Husa filter's R
-        is its estimate, so the known part is lent (``kf.R_lent``): the update uses it on
-        top of the estimate, the estimator takes it out of the innovations and does not
-        count it as the receiver's noise, and :meth:`_return_arm_noise` ends the loan.
-        (The variational-Bayes filters' R is their posterior; they learn the arm's noise.)
-        """
-        if fix.arm_var is None or self.sets_R or self.use_reported_cov or getattr(
-                self.kf, 'estimates_R', False):
-            return None
-        arm = fix.arm_var[self.MEAS_ENU]
-        self.kf.R_lent = arm
-        return arm
-
-    def _return_arm_noise(self):
-        """End the loan of :meth:`_lend_arm_noise`."""
-        self.kf.R_lent = None
 
     def feed(self, imu, gnss, t0):
         """Run samples 1..N-1 of ``imu`` (``t``, ``dtheta``, ``dv``) from stamp ``t0 = imu.t[0]``.
