@@ -55,8 +55,8 @@ from ..models.stationary import unobservable_variance
 from ..nav import earth
 from ..nav.frames import dcm_to_euler, euler_cov_from_phi_cov
 from ..units import DPH
-from .aided import ANGLE_UNKNOWN_VAR
 from . import coarse_stage
+from .aided import ANGLE_UNKNOWN_VAR
 from .convergence import MIN_SPAN_S, SHRINK, WINDOW_S
 from .factory import is_aided
 from .motion import choose_filter, gnss_motion

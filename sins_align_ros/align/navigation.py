@@ -285,11 +285,15 @@ class IntegratedNavigation(GnssAidedEngine):
             Phi = self._Phi
         else:
             Phi = lc.transition(self._F, T)
+        self.kf.Q = self._process_noise(Phi, T)
+
+    def _process_noise(self, Phi, T):
+        """Q (n, n) of ``T`` s with transition ``Phi``: the trapezoid, a dropped force's part."""
         Q = 0.5 * ((Phi * self.Qc) @ Phi.T + np.diag(self.Qc)) * T
         E = self._force_noise(T)             # a dropped horizontal force (:mod:`.force`)
         if E is not None:
             Q = Q + E
-        self.kf.Q = 0.5 * (Q + Q.T)
+        return 0.5 * (Q + Q.T)
 
     def forecast_model(self):
         """Return the last epoch's linear model, for a covariance forecast (:mod:`.expectation`).
@@ -304,16 +308,11 @@ class IntegratedNavigation(GnssAidedEngine):
         """
         if self._F is None or self.last_rows is None or not self._T_last:
             return None
-        T = self._T_last
-        Phi = lc.transition(self._F, T)
-        Q = 0.5 * ((Phi * self.Qc) @ Phi.T + np.diag(self.Qc)) * T
-        E = self._force_noise(T)
-        if E is not None:
-            Q = Q + E
+        T, Phi = self._T_last, self._Phi           # as _transition made them
         idx = np.asarray(self.last_rows)
         H = np.zeros((len(idx), self.n))
         H[np.arange(len(idx)), self.rows[idx]] = 1.0
-        return dict(P=self.kf.P.copy(), Phi=Phi, Q=0.5 * (Q + Q.T), H=H,
+        return dict(P=self.kf.P.copy(), Phi=Phi, Q=self._process_noise(Phi, T), H=H,
                     R=np.asarray(self.kf.R)[np.ix_(idx, idx)], T=T, i_phi=self.i_phi,
                     heading_cap=None if self.method == 'ukf' else HEADING_LINEAR_MAX_VAR,
                     heading_claim=HEADING_CLAIM_MAX_VAR)
