@@ -4,8 +4,9 @@ A mixin of :class:`~.fine_stage.FineStage`: at the sample an epoch is due at, th
 queued fixes (moved from the antenna to the IMU, :mod:`.installation`) and then the
 external headings go to the engine; after each GNSS update the consistency monitor
 (:class:`~.consistency.ConsistencyMonitor`) is given its innovations and its remedy is
-applied. A filter failure (:class:`~.gnss_gate.FilterDiverged`) comes back as its
-reason. Uses the stage's ``engine``, ``t0``, ``install``, ``headings``, ``consistency``,
+applied, and the under-way mounting check (:mod:`.sideslip`) the fix's velocity. A
+filter failure (:class:`~.gnss_gate.FilterDiverged`) comes back as its reason. Uses the
+stage's ``engine``, ``t0``, ``install``, ``headings``, ``consistency``, ``sideslip``,
 ``heading_known``, ``attitude_cov()``, ``rate_var()`` and ``_epoch_done()``.
 """
 import numpy as np
@@ -49,6 +50,15 @@ class EpochUpdates:
                 self.heading_known = True
             self._epoch_done(t_now)
 
+    def _check_sideslip(self, fix):
+        """Give the under-way mounting check (:mod:`.sideslip`) the epoch's velocity."""
+        if self.sideslip is None or self.mounting_doubt or fix.v_n is None:
+            return
+        doubt = self.sideslip.add(fix.v_n, self.engine.mech.C_b_n, self.attitude_cov()[2, 2])
+        if doubt:
+            self.mounting_doubt = doubt
+            self._att_cov = None
+
     def _apply_gnss(self, t_now, gnss, dtheta, dt):
         """Give the engine every queued epoch up to ``t_now``; the reason if it diverged.
 
@@ -69,6 +79,7 @@ class EpochUpdates:
             except FilterDiverged as exc:
                 return str(exc)
             gnss.used(fix)
+            self._check_sideslip(fix)
             if upd is not None:
                 eng = self.engine
                 # white excess innovations (a noisier receiver) are answered by the

@@ -33,7 +33,8 @@ rest tilt and bias stay one (seed 002 eq. 15: a / g), however much its heading w
 50' off, the wandering heading having "separated" them).
 
 Where the self-check's mounting check finds the vehicle frame far from level
-(:attr:`~.self_check.SelfCheck.mounting_doubt`: an IMU mounted rotated and untold), the
+(:attr:`~.self_check.SelfCheck.mounting_doubt`: an IMU mounted rotated and untold), or
+the GNSS velocity far from the vehicle's forward axis (:mod:`.sideslip`), the
 attitude is the IMU's, not the vehicle's: all three angles are published with the
 variance of an unknown angle and the stage is never ``aligned``.
 
@@ -51,6 +52,7 @@ from .expectation import SigmaHistory
 from .fine_epochs import EpochUpdates
 from .gnss_gate import FilterDiverged
 from .output import Rows, one_row
+from .sideslip import SideslipCheck
 
 FINE, ALIGNED = 'fine', 'aligned'
 #: variance of an angle known to be anywhere in (-pi, pi] (uniform): pi^2 / 3, rad^2
@@ -110,6 +112,9 @@ class FineStage(EpochUpdates):
         #: why the vehicle frame cannot be the told one (the self-check's mounting check):
         #: then the attitude is published as unknown and the stage is never ``aligned``
         self.mounting_doubt = ''
+        #: the same check under way, from the GNSS velocity (:mod:`.sideslip`), or None
+        self.sideslip = (SideslipCheck(cfg['mounting_check_max_sideslip_deg'])
+                         if cfg['sensor_self_check'] and not engine.restages else None)
         self._att_cov = None
 
     @property

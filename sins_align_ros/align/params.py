@@ -159,6 +159,11 @@ ALIGNMENT_PARAMS = (
           'mounted rotated with imu_mounting_rpy_deg untold: the attitude is published as '
           'unknown and never aligned (docs/alignment_node.md, installation); 180 turns the '
           'check off, deg', 5.0, 180.0),
+    Param('mounting_check_max_sideslip_deg', 45.0, 'self-check under way: a median angle of '
+          'the GNSS velocity from the vehicle\'s forward axis beyond this (GNSS epochs above '
+          '1 m/s, heading known) is taken for an IMU turned about the vertical '
+          'with imu_mounting_rpy_deg untold: the attitude is published as unknown and never '
+          'aligned; 180 turns the check off (a vehicle that moves sideways), deg', 5.0, 180.0),
     Param('gnss_pos_sigma_m', 1.0, 'GNSS horizontal position noise, 1 sigma, m (moving-base '
           'filters; used when a fix reports no covariance or reported covariance is off)',
           0.001, 1000.0),

@@ -53,13 +53,15 @@ class ConditionReport:
 
     def __init__(self):
         self._reported = {'rejected': 0, 'forced': 0, 'ahead_of_imu': 0, 'queue_full': 0}
+        self._mounting = ''
 
     def conditions(self, p):
         """Degraded conditions of pipeline ``p`` as ``[(level, text)]`` (1 warn, 2 error).
 
         GNSS epochs rejected by the innovation gate, re-anchoring after a run of
         rejections, fixes stamped ahead of the IMU clock, epochs dropped from a full
-        queue, and a GNSS-aided filter running without GNSS.
+        queue, a GNSS-aided filter running without GNSS, and the under-way mounting
+        check's finding (:mod:`.sideslip`).
         """
         out = []
         gate = getattr(p.engine, 'gate', None)
@@ -78,6 +80,11 @@ class ConditionReport:
             if t_ref is not None and p.t_last - t_ref > OUTAGE_WARN_S:
                 out.append((1, f'no GNSS epoch used for {p.t_last - t_ref:.1f} s: '
                                'moving-base filter running unaided (attitude sigma growing)'))
+        doubt = p.fine.mounting_doubt if p.fine is not None else ''
+        if doubt and doubt != self._mounting:
+            self._mounting = doubt
+            if p.check is None or doubt != p.check.mounting_doubt:   # (said at hand-over)
+                out.append((1, doubt))
         n = self._since('queue_full', p.gnss.counts['queue_full'])
         if n > 0:
             out.append((1, f'{n} GNSS epoch(s) dropped: more than {QUEUE} '

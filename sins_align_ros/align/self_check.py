@@ -66,7 +66,7 @@ the finding is reported:
   The finding says so, with the roll and pitch a level vehicle would give the mounting;
   the fine stage then publishes roll, pitch and heading as unknown and is never
   ``aligned`` (:attr:`SelfCheck.mounting_doubt`). A mounting turned about the vertical
-  only is not seen here.
+  only is not seen here; under way the GNSS velocity shows it (:mod:`.sideslip`).
 * **Heading observability**: a gyro whose bias sigma (after widening) is not small
   against the horizontal Earth rate cannot find north at rest; the result says so
   and the stationary filters publish the heading as unknown.

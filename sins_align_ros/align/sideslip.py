@@ -1,0 +1,79 @@
+"""The mounting check under way: a vehicle moves along its forward axis.
+
+The self-check's mounting check (:mod:`.self_check`) sees an IMU mounted rotated about a
+horizontal axis in the coarse window (the vehicle frame far from level), not one turned
+about the vertical: gravity looks the same. Under way it shows in the GNSS velocity: a car,
+a ship, a USV or an aircraft moves along its forward axis, forwards or backwards, give or
+take a sideslip or a crab angle of a few degrees (a current across a slow boat: 20-30 deg;
+the simulated USV in severe sea at about 1 m/s, its sway and heave included: medians up to
+21 deg above 1 m/s, 24 deg above 0.3 m/s). So at each GNSS epoch above :data:`MIN_SPEED`,
+once the filter's heading is known (1-sigma within :data:`MAX_HEADING_SIGMA`), the
+direction of the velocity in the vehicle frame is taken; when the median of its angle from
+the forward axis over the last :data:`WINDOW` such epochs (at least :data:`MIN_EPOCHS`) is
+beyond ``mounting_check_max_sideslip_deg`` (45 deg), the IMU is taken for turned about the
+vertical with ``imu_mounting_rpy_deg`` untold: the attitude found is the IMU's, not
+``base_link``'s (simulated: a ship with its IMU turned 90 deg, published 91 deg off under a
+0.09 deg sigma and ``aligned``). The fine stage then publishes it as unknown and is never
+``aligned`` (``FineStage.mounting_doubt``). A vehicle that moves sideways for a minute (a
+holonomic robot) needs the check off (180). An IMU turned 180 deg is not seen: backwards
+is taken for reversing (seed 003's car backs up for a minute at 5 m/s).
+"""
+import math
+from collections import deque
+
+import numpy as np
+
+#: epochs over which the median is taken
+WINDOW = 60
+#: horizontal speed (m/s) below which an epoch is not judged
+MIN_SPEED = 1.0
+#: the latest epochs whose median the suggested mounting yaw is (the filter's heading
+#: moves from the track's, where the coarse stage put it, to the IMU's)
+LATEST = 10
+#: epochs needed before the check judges
+MIN_EPOCHS = 20
+#: the heading 1-sigma (rad) within which the filter's heading is good enough to judge by
+MAX_HEADING_SIGMA = math.radians(10.0)
+
+
+class SideslipCheck:
+    """Median angle of the vehicle-frame GNSS velocity from forward (module docstring).
+
+    ``max_sideslip_deg`` the bound (180: never).
+    """
+
+    def __init__(self, max_sideslip_deg, min_speed=MIN_SPEED):
+        self.limit = float(max_sideslip_deg)
+        self.min_speed = float(min_speed)
+        self.angles = deque(maxlen=WINDOW)
+
+    def add(self, v_n, C_b_n, var_yaw):
+        """Take an epoch's ENU velocity ``v_n`` (3,) with the attitude ``C_b_n`` (3, 3).
+
+        ``var_yaw``: the published heading variance (rad^2). Returns the finding ('' while
+        there is none).
+        """
+        if self.limit >= 180.0 or var_yaw > MAX_HEADING_SIGMA ** 2:
+            return ''
+        v_n = np.asarray(v_n, dtype=float)
+        if not math.hypot(v_n[0], v_n[1]) >= self.min_speed:
+            return ''
+        v_b = C_b_n.T @ v_n
+        a = math.degrees(math.atan2(v_b[1], v_b[0]))
+        if abs(a) > 90.0:                   # reversing: the same axis (seed 003's car backs
+            a -= math.copysign(180.0, a)    # up for a minute at 5 m/s)
+        self.angles.append(a)
+        if len(self.angles) < MIN_EPOCHS:
+            return ''
+        a = np.asarray(self.angles)
+        if float(np.median(np.abs(a))) <= self.limit:
+            return ''
+        yaw = -float(np.median(a[-LATEST:]))
+        return (f'the GNSS velocity lies {float(np.median(np.abs(a))):.0f} deg from the '
+                f'vehicle\'s forward axis (median over the last {len(a)} epochs above '
+                f'{self.min_speed:g} m/s; mounting_check_max_sideslip_deg {self.limit:g}): the '
+                'IMU is probably mounted turned about the vertical and imu_mounting_rpy_deg\'s '
+                'yaw is untold, so the attitude found is not base_link\'s: roll, pitch and '
+                'heading published as unknown, never aligned. Set imu_mounting_rpy_deg (its '
+                f'yaw about {yaw:.0f} deg lately, if the vehicle moves forward), or set '
+                'mounting_check_max_sideslip_deg to 180 for a vehicle that moves sideways')
