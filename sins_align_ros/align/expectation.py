@@ -226,17 +226,17 @@ class Forecaster:
                                np.sqrt(np.diag(fine.attitude_cov())), DONE)
         still = (not p.aided if fine is not None else not _moving(p))
         if not still:
-            key = ('moving', id(fine), p.n_restarts)
-            t = p.elapsed
-            if key != self._key or t - self._t_made >= MOTION_REFRESH_S or self._cached is None:
-                self._cached = self._trend(p)
-                self._key, self._t_made = key, t
-            return self._cached
+            return self._made(p, ('moving', id(fine), p.n_restarts), MOTION_REFRESH_S,
+                              self._trend)
         key = (id(fine), None if fine is None else fine.stage, None if fine is None
                else fine.heading_known, p.n_restarts)
+        return self._made(p, key, REFRESH_S, _still)
+
+    def _made(self, p, key, every, make):
+        """Return the forecast ``make(p)`` made for ``key`` within ``every`` s of data."""
         t = p.elapsed
-        if key != self._key or t - self._t_made >= REFRESH_S or self._cached is None:
-            self._cached = _still(p)
+        if key != self._key or t - self._t_made >= every or self._cached is None:
+            self._cached = make(p)
             self._key, self._t_made = key, t
         return self._cached
 
