@@ -23,10 +23,13 @@ cache it filled.
 
 ``relay`` in ``--filters`` runs, in the node's place, the least a node can do with the same
 traffic in rclpy: subscribe ``imu/data_raw`` and republish each message on ``imu/data``
-with the node's QoS and executor (``runner.make_executor``): the floor of the CPU share.
+with the node's QoS and executor (``runner.make_executor``); ``relay_raw`` the same with
+the messages as serialized bytes (``raw=True``, as the node takes them): the floor of the
+CPU share, what rclpy and the rmw cost for one message in and one out.
 
 Usage: python bench/node_load.py [--rate 1000] [--seconds 150] [--window 60]
-                                 [--filters asckf/jit,asckf,kf,relay] [--out FILE]
+                                 [--filters asckf/jit,asckf,kf,relay,relay_raw]
+                                 [--out FILE]
 """
 import argparse
 import os
@@ -106,7 +109,7 @@ def make_relay():
     qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                      history=HistoryPolicy.KEEP_LAST)
     pub = node.create_publisher(Imu, 'imu/data', qos)
-    node.create_subscription(Imu, 'imu/data_raw', pub.publish, qos)
+    node.create_subscription(Imu, 'imu/data_raw', pub.publish, qos, raw={raw})
     return node
 
 
@@ -187,7 +190,8 @@ def run_case(fine_filter, args, folder, cache_dir, jit=False):
     t_go = time.time()
     time.sleep(2.0)                                   # the IMU is flowing
     t_launch = time.time()
-    cmd = ([sys.executable, '-c', RELAY.format(root=str(ROOT))] if fine_filter == 'relay'
+    cmd = ([sys.executable, '-c', RELAY.format(root=str(ROOT), raw=fine_filter == 'relay_raw')]
+           if fine_filter.startswith('relay')
            else [sys.executable, '-m', 'sins_align_ros.ros.alignment_node', '--ros-args',
                  '--params-file', str(params_yaml(folder, fine_filter))])
     node = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL,
@@ -232,7 +236,7 @@ def main(argv=None):
         for f in args.filters.split(','):
             name, jit = f.split('/')[0], f.endswith('/jit')
             results[f] = run_case(name, args, folder, cache, jit)
-            results[f]['cache'] = ('-' if name == 'relay' else
+            results[f]['cache'] = ('-' if name.startswith('relay') else
                                    'ahead of time' if not jit else
                                    'JIT, cache filled' if jit_runs else 'JIT, empty cache')
             jit_runs += jit

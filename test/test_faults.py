@@ -166,6 +166,47 @@ def test_skipped_samples_longer_than_max_gap_restart_and_no_usable_data_is_an_er
     rig.check_attitude(s)
 
 
+def test_bytes_that_are_no_imu_are_refused_and_big_endian_ones_are_read(rig_factory):
+    """The node takes imu/data_raw serialized (raw): any bytes may come, from any serializer."""
+    import struct
+
+    from rclpy.serialization import serialize_message
+    from sensor_msgs.msg import Imu
+
+    from sins_align_ros.ros.playback import imu_msg
+    s = _stream('static_navigation', 100.0, 85.0)
+    rig = rig_factory(**STILL)
+    raw_pub = rig.pub.create_publisher(Imu, 'imu/data_raw', 50)
+    rig.play(s, -np.inf, 40.0)
+    assert rig.node.pipeline.phase == 'fine'
+    k0 = int(np.searchsorted(s.imu['t_pub'], 40.0))
+    rig.node._flush_imu()                         # the batch waiting: counted now
+    accepted = rig.node.session.imu_input.counts['accepted']
+    for k in range(k0, k0 + 20):                  # 0.2 s: bridged, as skipped samples are
+        m = imu_msg(s, k)
+        raw = serialize_message(m)
+        if k % 2:                                 # the same message, big-endian CDR
+            text = m.header.frame_id.encode() + b'\0'
+            h = struct.pack('>iIi', m.header.stamp.sec, m.header.stamp.nanosec,
+                            len(text)) + text
+            raw = b'\x00\x00\x00\x00' + h + bytes(-len(h) % 8) + struct.pack(
+                '>37d', *np.frombuffer(raw[-296:], '<f8'))
+        else:
+            raw = raw[:40] + b'cut short'         # no Imu
+        raw_pub.publish(raw)
+        rig.player.sent += 1
+    rig.player.drain(rig.ex)
+    t1 = float(s.imu['t_pub'][k0 + 20])
+    rig.play(s, t1)
+    rig.flush_diagnostics()
+    counts = rig.node.session.imu_input.counts
+    assert counts['undecodable'] == 10, dict(counts)
+    assert counts['accepted'] - accepted == len(s.imu['t']) - k0 - 10, dict(counts)
+    assert rig.said(WARN, 'not a decodable sensor_msgs/Imu'), rig.messages()
+    assert not rig.said(WARN, 'alignment restarted'), rig.messages()
+    rig.check_attitude(s)
+
+
 def test_every_fault_of_the_injector_is_exercised():
     assert set(FAULTS) == set(IMU_CASES) | set(GNSS_CASES)
 

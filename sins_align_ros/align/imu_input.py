@@ -49,7 +49,8 @@ OK, SKIP, RESET, START = 0, 1, 2, 3
 #: samples over which the nominal interval is the median
 RATE_WINDOW = 50
 #: reasons for which a sample is skipped
-SKIP_REASONS = ('nan', 'saturated', 'field_missing', 'wrong_frame', 'stamp_not_increasing')
+SKIP_REASONS = ('nan', 'saturated', 'field_missing', 'wrong_frame', 'stamp_not_increasing',
+                'undecodable')
 
 
 class ImuInput:

@@ -43,18 +43,57 @@ def decode_imu(raws):
     (N,) False for messages not decoded here (their rows are NaN; decode them with the
     general deserialiser). ``frame_id`` is not returned.
     """
+    t, body, _, ok = imu_bodies(raws)
+    missing = ok & ((body[:, 16] == -1.0) | (body[:, 28] == -1.0))
+    return t, body[:, 13:16], body[:, 25:28], missing, ok
+
+
+def imu_bodies(raws):
+    """Decode serialized Imu messages (list of bytes) into their fixed-layout bodies.
+
+    Returns ``(t, body, a0, ok)``: stamp (N,) s; ``body`` (N, 37) the doubles from
+    ``orientation`` on (:data:`IMU_ORIENTATION` ... :data:`IMU_ACCELERATION_COV`
+    slices); ``a0`` (N,) int, the body offset where they start (the bytes before
+    ``4 + a0`` are the encapsulation, the header and its padding); ``ok`` as in
+    :func:`decode_imu` (rows not decoded are NaN, ``a0`` 0).
+    """
     n = len(raws)
-    t, w, f = np.full(n, np.nan), np.full((n, 3), np.nan), np.full((n, 3), np.nan)
-    missing, ok = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+    t, body = np.full(n, np.nan), np.full((n, _BODY // 8), np.nan)
+    a0, ok = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=bool)
     for g in _groups(raws):
-        a0 = _align(g.string_end(np.full(len(g.idx), 8)), 8)
-        body = g.f8(a0, _BODY // 8)                                   # 37 doubles per row
-        g.ends_at(a0 + _BODY)
+        a = _align(g.string_end(np.full(len(g.idx), 8)), 8)
+        rows = g.f8(a, _BODY // 8)
+        g.ends_at(a + _BODY)
         i, k = g.idx[g.ok], g.ok
-        t[i], w[i], f[i] = g.stamp()[k], body[k, 13:16], body[k, 25:28]
-        missing[i] = (body[k, 16] == -1.0) | (body[k, 28] == -1.0)
-        ok[i] = True
-    return t, w, f, missing, ok
+        t[i], body[i], a0[i], ok[i] = g.stamp()[k], rows[k], a[k], True
+    return t, body, a0, ok
+
+
+#: columns of :func:`imu_bodies`' rows: orientation (x, y, z, w), its covariance (9),
+#: angular velocity (3), its covariance, linear acceleration (3), its covariance
+IMU_ORIENTATION, IMU_ORIENTATION_COV = slice(0, 4), slice(4, 13)
+IMU_RATE, IMU_RATE_COV = slice(13, 16), slice(16, 25)
+IMU_ACCELERATION, IMU_ACCELERATION_COV = slice(25, 28), slice(28, 37)
+
+
+def header_bytes(stamp, frame_id):
+    """Serialize a message's start: encapsulation, ``std_msgs/Header``, padding to 8.
+
+    ``stamp``: the 8 bytes of ``sec`` and ``nanosec`` as serialized (little endian);
+    ``frame_id`` str. The result followed by a message body whose first field is a
+    double (an Imu's ``orientation``) is the whole serialized message.
+    """
+    text = frame_id.encode() + b'\0'
+    head = bytes(CDR_LE) + b'\0\0' + stamp + len(text).to_bytes(4, 'little') + text
+    return head + bytes(-(len(head) - 4) % 8)
+
+
+def header_fields(head):
+    """Return ``(sec, nanosec, frame_id)`` of a serialized little-endian message's header."""
+    sec = int.from_bytes(head[4:8], 'little', signed=True)
+    nsec = int.from_bytes(head[8:12], 'little')
+    size = int.from_bytes(head[12:16], 'little')
+    return sec, nsec, head[16:15 + size].decode(errors='replace')
 
 
 def _align(x, n):

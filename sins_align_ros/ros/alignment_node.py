@@ -33,7 +33,9 @@ IMU messages are processed in batches (``imu_batch_period``, default 10 ms of wa
 at 1 kHz ten samples go through the input checks and the compiled filters at once,
 which took the node from 0.39 to 0.22 cores with ``asckf``, bench/results/node_load.md),
 then published one by one with their own headers; a GNSS message, a parameter change, a
-reset or the period's timer flushes the batch first.
+reset or the period's timer flushes the batch first. They are taken and published as
+serialized bytes, decoded by the batch (:mod:`.imu_wire`): no Python message object per
+sample.
 
 Service ``~/reset`` (std_srvs/Trigger) restarts the alignment in any phase.
 Changing an alignment parameter at runtime (``fine_filter`` included) restarts
@@ -58,12 +60,14 @@ from std_srvs.srv import Trigger
 
 from .conversions import set_vector3, stamp_to_sec
 from .diagnostics import FaultLog, alignment_status
-from .messages import imu_message, odometry_message
+from .imu_wire import ImuRows, echo_bodies, header_message
+from .messages import odometry_message
 from .params import declare
 from .runner import make_executor, run
 from ..align import params as prm
 from ..align.odometry import OdometryFrame
 from ..align.session import AlignmentSession
+from ..io import cdr
 from ..nav import kernels
 from ..nav.frames import quat_to_yaw
 
@@ -126,7 +130,7 @@ class AlignmentShell:
                              history=HistoryPolicy.KEEP_LAST)
         gnss_qos = QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT,
                               history=HistoryPolicy.KEEP_LAST)
-        return [self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_qos),
+        return [self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_qos, raw=True),
                 self.create_subscription(NavSatFix, 'gnss/fix', self._on_fix, gnss_qos),
                 self.create_subscription(TwistWithCovarianceStamped, 'gnss/vel',
                                          self._on_vel, gnss_qos),
@@ -225,27 +229,17 @@ class AlignmentShell:
                              var, has_orientation=c[0] != -1.0)
         self._drain()
 
-    def _on_imu(self, msg):
+    def _on_imu(self, raw):
+        """Queue a serialized IMU message (``raw=True``: bytes) for the batch."""
         self.received['imu/data_raw'] += 1
-        self._last_imu_wall = self.get_clock().now()
+        now = time.monotonic()
+        self._last_imu_wall = now
         self._period_imu[0] += 1
-        frame = self.p['imu_frame_id']
-        if frame and msg.header.frame_id != frame:
-            self.session.reject_imu('wrong_frame', f"frame_id '{msg.header.frame_id}' is not "
-                                                   f"'{frame}': sample skipped")
-        elif msg.angular_velocity_covariance[0] == -1.0 or (
-                msg.linear_acceleration_covariance[0] == -1.0):
-            self.session.reject_missing_field()
-        else:
-            now = time.monotonic()
-            if not self._batch:
-                self._batch_wall = now
-            self._batch.append((stamp_to_sec(msg.header.stamp), msg))
-            if now - self._batch_wall < self.p['imu_batch_period']:
-                return
+        if not self._batch:
+            self._batch_wall = now
+        self._batch.append(raw)
+        if now - self._batch_wall >= self.p['imu_batch_period']:
             self._flush_imu()
-            return
-        self._drain()
 
     def _on_batch_timer(self):
         """Flush a batch the input stopped filling (a pause, the end of a recording)."""
@@ -256,40 +250,73 @@ class AlignmentShell:
         """Run the waiting IMU messages through the session; publish a row per sample."""
         if not self._batch:
             return
-        batch, self._batch = self._batch, []
-        n = len(batch)
-        wf = np.array([(m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z,
-                        m.linear_acceleration.x, m.linear_acceleration.y,
-                        m.linear_acceleration.z) for _, m in batch])
+        batch, self._batch = ImuRows(self._batch), []
+        self._refuse(batch)
+        if not len(batch):
+            self._drain()
+            return
+        missing = batch.missing
         conv = self.session.imu_input
         skipped, accepted = conv.rejected, conv.counts['accepted']
-        if n == 1:                                   # the one-sample path costs less
-            out = self.session.imu(batch[0][0], wf[0, :3], wf[0, 3:])
+        w_b, f_b = batch.body[:, cdr.IMU_RATE], batch.body[:, cdr.IMU_ACCELERATION]
+        if len(batch) == 1 and not missing[0]:       # the one-sample path costs less
+            out = self.session.imu(batch.t[0], w_b[0], f_b[0])
         else:
-            t = np.fromiter((b[0] for b in batch), dtype=float, count=n)
-            out = self.session.imu_block(t, wf[:, :3], wf[:, 3:])
-        self._period_imu[1] += n - (conv.rejected - skipped)
+            out = self.session.imu_block(batch.t, w_b, f_b, missing if missing.any() else None)
+        self._period_imu[1] += len(batch) - (conv.rejected - skipped)
         self.counts['imu'] += conv.counts['accepted'] - accepted
+        if missing.any():
+            batch.select(~missing)
         C_s_v = self.pipeline.install.C_s_v
         if C_s_v is not None:
-            _to_vehicle_frame([m for _, m in batch], wf, C_s_v, self.p['base_frame_id'])
-        self._recent.extend(batch)
-        odo_state = self._odometry_state() if out.nav is not None and len(out.t) else None
-        for k, t_k in enumerate(out.t):            # each finished sample, its own header
-            while len(self._recent) > 1 and self._recent[0][0] < t_k - 1e-9:
-                self._recent.popleft()
-            src = self._recent[0][1]
-            self._publish(src, out, k)
-            if odo_state is not None:
-                self._publish_odom(src, out, k, odo_state)
+            batch.to_vehicle_frame(C_s_v, self.p['base_frame_id'])
+        self._recent.extend(batch.rows())
+        if len(out.t):
+            self._publish(out)
         self._drain()
 
+    def _refuse(self, batch):
+        """Count and drop the messages of ``batch`` that cannot be used (bytes, frame)."""
+        keep = ~batch.bad
+        for _ in range(int(batch.bad.sum())):
+            self.session.reject_imu('undecodable', 'message bytes not a decodable '
+                                    'sensor_msgs/Imu: sample skipped')
+        frame = self.p['imu_frame_id']
+        if frame:
+            for i, fid in enumerate(batch.frame_ids()):
+                if keep[i] and fid != frame:
+                    keep[i] = False
+                    self.session.reject_imu('wrong_frame', f"frame_id '{fid}' is not "
+                                                           f"'{frame}': sample skipped")
+        if not keep.all():
+            batch.select(keep)
+
     # -- output ------------------------------------------------------------------------------
-    def _publish(self, src, out, k=-1):
-        m, e = imu_message(src, out, k, self._euler)
-        if e is not None and self.pub_euler.get_subscription_count():   # none: not built
-            self.pub_euler.publish(e)
-        self.pub_imu.publish(m)
+    def _publish(self, out):
+        """Publish ``imu/data`` (and ``~/euler``, ``~/odom``) for each row of ``out``.
+
+        Each row refers to the received sample with its stamp (with pre-processing an
+        earlier one than the batch's), whose header and rates it carries.
+        """
+        recent, srcs = self._recent, []
+        for t_k in out.t.tolist():
+            while len(recent) > 1 and recent[0][0] < t_k - 1e-9:
+                recent.popleft()
+            srcs.append(recent[0])
+        bodies = echo_bodies([s[2] for s in srcs], out.q, out.P_phi)
+        publish = self.pub_imu.publish
+        for (_, head, _), body in zip(srcs, bodies):
+            publish(head + body.tobytes())
+        if self.pub_euler.get_subscription_count():     # none: not built
+            for k, (_, head, _) in enumerate(srcs):
+                if np.isfinite(out.q[k, 0]):
+                    self._euler.header = header_message(head)
+                    set_vector3(self._euler.vector, out.euler[k])
+                    self.pub_euler.publish(self._euler)
+        if out.nav is not None:
+            state = self._odometry_state()
+            for k, (_, head, body) in enumerate(srcs):
+                self._publish_odom(head, body[cdr.IMU_RATE], out, k, state)
 
     def _odometry_state(self):
         """Return the batch end's ``(P_nav, gyro_bias, rate_var)`` for its ~/odom rows.
@@ -301,20 +328,24 @@ class AlignmentShell:
         dt = self.session.imu_input.dt_nominal or 0.01
         return pipe.nav_cov(), pipe.engine.gyro_bias, pipe.noise.gyro_arw ** 2 / dt
 
-    def _publish_odom(self, src, out, k, state):
-        """Publish row ``k`` with the batch end's filter ``state`` (:meth:`_odometry_state`)."""
+    def _publish_odom(self, head, w_b, out, k, state):
+        """Publish row ``k`` with the batch end's filter ``state`` (:meth:`_odometry_state`).
+
+        ``head``: the serialized start of the sample's message (its header); ``w_b`` (3,)
+        its rate, rad/s.
+        """
         P_nav, gyro_bias, rate_var = state
-        w = src.angular_velocity
-        odo = self.odom.sample(out, P_nav, np.array([w.x, w.y, w.z]), gyro_bias, rate_var, k)
+        odo = self.odom.sample(out, P_nav, w_b, gyro_bias, rate_var, k)
         if odo is not None:
-            self.pub_odom.publish(odometry_message(src.header.stamp, self.p['odom_frame_id'],
-                                                   src.header.frame_id, odo))
+            header = header_message(head)
+            self.pub_odom.publish(odometry_message(header.stamp, self.p['odom_frame_id'],
+                                                   header.frame_id, odo))
 
     def _publish_diagnostics(self):
         session = self.session
         imu_age = None
         if self._last_imu_wall is not None:
-            imu_age = (self.get_clock().now() - self._last_imu_wall).nanoseconds * 1e-9
+            imu_age = time.monotonic() - self._last_imu_wall
         imu_counts, gnss_counts = session.input_counts()
         values = {f'imu_{k}': v for k, v in imu_counts.items()}
         values.update({f'gnss_input_{k}': v for k, v in gnss_counts.items()})
@@ -350,24 +381,6 @@ class AlignmentNode(AlignmentShell, Node):
         self._subscribe()
         self._create_outputs(self.create_publisher)
         self._log_start()
-
-
-def _to_vehicle_frame(msgs, wf, C_s_v, frame_id):
-    """Turn received Imu ``msgs`` (rates and accelerations ``wf`` (N, 6)) into the vehicle frame.
-
-    ``C_s_v`` (3, 3) IMU -> vehicle rotation; the rate and acceleration covariances are
-    turned with them, and ``frame_id`` (``base_frame_id``) replaces the IMU's.
-    """
-    w = wf[:, :3] @ C_s_v.T
-    f = wf[:, 3:] @ C_s_v.T
-    for k, m in enumerate(msgs):
-        set_vector3(m.angular_velocity, w[k])
-        set_vector3(m.linear_acceleration, f[k])
-        for name in ('angular_velocity_covariance', 'linear_acceleration_covariance'):
-            P = np.asarray(getattr(m, name), dtype=float).reshape(3, 3)
-            if np.any(P):
-                setattr(m, name, (C_s_v @ P @ C_s_v.T).ravel())
-        m.header.frame_id = frame_id
 
 
 def main(args=None):
