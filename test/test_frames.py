@@ -140,3 +140,13 @@ def test_euler_sigma_is_the_propagated_covariance_of_a_small_nav_frame_rotation(
         assert np.allclose(fr.euler_sigma_one(euler[k], P[k].tolist()), sig[k], rtol=1e-12)
         cov = fr.euler_cov_from_phi_cov(euler[k], P[k])
         assert np.allclose(np.sqrt(np.clip(np.diag(cov), 0.0, None)), sig[k], rtol=1e-12)
+
+
+@pytest.mark.parametrize('departure', [0.0, 1e-15, 1e-12, 1e-9, 1e-6, 1e-2])
+def test_reorthonormalize_is_the_svd_polar_factor_to_round_off(departure):
+    rng = np.random.default_rng(7)
+    for _ in range(50):
+        C = fr.rotvec_to_dcm(rng.normal(0.0, 1.0, 3)) + rng.normal(0.0, departure, (3, 3))
+        R = fr.reorthonormalize(C)
+        assert np.abs(R - fr.orthonormalize(C)).max() < 2e-14
+        assert np.abs(R.T @ R - np.eye(3)).max() < 2e-15

@@ -38,7 +38,7 @@ from ..filters.ckf import CKF
 from ..filters.cubature import batched
 from ..models import large_azimuth as la
 from ..nav import earth
-from ..nav.frames import orthonormalize
+from ..nav.frames import orthonormalize, reorthonormalize
 from ..units import DPH, UG
 from .aided import GnssAidedEngine, GnssFix
 from .gnss_gate import FilterDiverged, GnssGate  # noqa: F401  (FilterDiverged re-exported)
@@ -245,7 +245,7 @@ class MovingBaseAlignment(GnssAidedEngine):
         m, kf = self.mech, self.kf
         x = kf.x
         C_n_np = la.C_n_nprime(x[I_PHI])
-        m.C_b_n = orthonormalize(C_n_np.T @ m.C_b_n)
+        m.C_b_n = reorthonormalize(C_n_np.T @ m.C_b_n)
         m.correct_velocity(np.array([x[0], x[1], 0.0]))
         R_M, R_N = earth.radii(m.lat)
         m.correct_position(np.array([x[3] / (R_M + m.h),

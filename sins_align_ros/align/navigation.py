@@ -63,7 +63,8 @@ from ..filters.vbakf import VBAKF
 from ..models import large_misalignment as lm
 from ..models import loosely_coupled as lc
 from ..nav import earth
-from ..nav.frames import dcm_to_euler, euler_to_dcm, orthonormalize, rotvec_to_dcm, wrap_pi
+from ..nav.frames import (dcm_to_euler, euler_to_dcm, orthonormalize, reorthonormalize,
+                          rotvec_to_dcm, wrap_pi)
 from ..units import DPH, UG
 from .aided import ANGLE_UNKNOWN_VAR, GnssAidedEngine
 from .gnss_gate import GnssGate
@@ -343,9 +344,9 @@ class IntegratedNavigation(GnssAidedEngine):
         m, kf = self.mech, self.kf
         x = kf.x
         if self.method == 'ukf':
-            m.C_b_n = orthonormalize(lm.C_n_nprime(x[lc.I_PHI]).T @ m.C_b_n)
+            m.C_b_n = reorthonormalize(lm.C_n_nprime(x[lc.I_PHI]).T @ m.C_b_n)
         else:
-            m.C_b_n = orthonormalize(rotvec_to_dcm(x[lc.I_PHI]) @ m.C_b_n)
+            m.C_b_n = reorthonormalize(rotvec_to_dcm(x[lc.I_PHI]) @ m.C_b_n)
         m.correct_velocity(x[lc.I_V].copy())
         R_M, R_N = earth.radii(m.lat)
         m.correct_position(np.array([x[7] / (R_M + m.h), x[6] / ((R_N + m.h) * math.cos(m.lat)),

@@ -38,7 +38,7 @@ from ..filters.vbch import VBCH
 from ..filters.vbckf import VBCKF
 from ..models import large_azimuth as la
 from ..models import large_misalignment as lm
-from ..nav.frames import orthonormalize
+from ..nav.frames import reorthonormalize
 from ..units import DPH, UG
 from .aided import GnssAidedEngine
 from .gnss_gate import GnssGate
@@ -127,7 +127,7 @@ class RobustAlignment(GnssAidedEngine):
         """Move the estimated misalignment and velocity error into the mechanization."""
         m, kf = self.mech, self.kf
         x = kf.x
-        m.C_b_n = orthonormalize(lm.C_n_nprime(x[lm.I_PHI]).T @ m.C_b_n)
+        m.C_b_n = reorthonormalize(lm.C_n_nprime(x[lm.I_PHI]).T @ m.C_b_n)
         m.correct_velocity(x[lm.I_V].copy())
         # the residual misalignment error: heading kept, tilts turned by the heading
         # correction (:func:`~sins_align_ros.models.large_azimuth.reset_jacobian`; the

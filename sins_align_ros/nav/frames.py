@@ -132,6 +132,31 @@ def orthonormalize(C):
     return U @ Vt
 
 
+#: departure from orthonormality (largest ``|C^T C - I|`` entry) below which one
+#: Newton-Schulz step reaches round-off in :func:`reorthonormalize`
+NEWTON_SCHULZ_MAX = 1e-8
+_I3 = np.eye(3)
+
+
+def reorthonormalize(C):
+    """Nearest orthonormal matrix to a nearly orthonormal ``C`` (3, 3): its polar factor.
+
+    For an attitude that is a product of rotations (a filter's feedback ``C_n'^n C_b^n'``),
+    orthonormal but for round-off. With ``E = C^T C - I``: ``C`` itself when ``|E| <
+    1e-15``; one Newton-Schulz step ``C (I - E / 2)`` when ``|E|`` is within
+    :data:`NEWTON_SCHULZ_MAX` (the step squares the departure, ``3/4 |E|^2``, to
+    round-off, as ``nav/kernels.py``'s ``_reorthonormalise`` does); else the SVD. The
+    polar factor to round-off, at half the SVD's cost in the GNSS epoch loop.
+    """
+    E = C.T @ C - _I3
+    err = np.abs(E).max()
+    if err < 1e-15:
+        return C
+    if err < NEWTON_SCHULZ_MAX:
+        return C - 0.5 * (C @ E)
+    return orthonormalize(C)
+
+
 # --- REP-103 Euler angles ----------------------------------------------------
 def euler_to_dcm(euler):
     """``C_b_n`` from REP-103 ``[roll, pitch, yaw]`` (rad); (3,) -> (3, 3), (N, 3) -> (N, 3, 3)."""
