@@ -117,3 +117,29 @@ def test_vehicle_frame_turns_vectors_and_covariances_and_renames_the_frame():
         P = v[28:37].reshape(3, 3)
         assert np.allclose(np.reshape(out.linear_acceleration_covariance, (3, 3)),
                            C_s_v @ P @ C_s_v.T, atol=1e-14)
+
+
+def test_odometry_bytes_are_the_message_rclpy_reads():
+    from nav_msgs.msg import Odometry as OdometryMsg
+
+    from sins_align_ros.align.odometry import Odometry
+    from sins_align_ros.io.cdr import odometry_head
+    from sins_align_ros.ros.messages import odometry_bodies
+    k = 3
+    odo = Odometry(RNG.normal(size=(k, 3)), RNG.normal(size=(k, 4)),
+                   RNG.normal(size=(k, 6, 6)), RNG.normal(size=(k, 3)),
+                   RNG.normal(size=(k, 3)), RNG.normal(size=(k, 6, 6)))
+    for frame, child in (('odom', 'imu_link'), ('', 'a'), ('map_frame', ''), ('ab', 'cdefg')):
+        stamp = (1_700_000_123).to_bytes(4, 'little') + (456).to_bytes(4, 'little')
+        for i, body in enumerate(odometry_bodies(odo)):
+            m = deserialize_message(odometry_head(stamp, frame, child) + body.tobytes(),
+                                    OdometryMsg)
+            assert (m.header.stamp.sec, m.header.stamp.nanosec) == (1_700_000_123, 456)
+            assert (m.header.frame_id, m.child_frame_id) == (frame, child)
+            p, o, t = m.pose.pose.position, m.pose.pose.orientation, m.twist.twist
+            assert np.array_equal((p.x, p.y, p.z), odo.position[i])
+            assert np.array_equal((o.x, o.y, o.z, o.w), odo.q[i])
+            assert np.array_equal(m.pose.covariance, odo.pose_cov[i].ravel())
+            assert np.array_equal((t.linear.x, t.linear.y, t.linear.z), odo.v_b[i])
+            assert np.array_equal((t.angular.x, t.angular.y, t.angular.z), odo.w_b[i])
+            assert np.array_equal(m.twist.covariance, odo.twist_cov[i].ravel())

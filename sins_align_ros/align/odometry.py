@@ -15,11 +15,11 @@ from ..nav.frames import quat_to_dcm, skew
 
 @dataclass
 class Odometry:
-    """One odometry sample.
+    """Odometry samples, K of them (:meth:`OdometryFrame.samples`).
 
-    ``position`` (3,) m ENU from the origin; ``q`` (4,) x, y, z, w body FLU -> ENU;
-    ``pose_cov`` (6, 6) position (m) and attitude about the ENU axes (rad);
-    ``v_b`` (3,) m/s and ``w_b`` (3,) rad/s in the body axes; ``twist_cov`` (6, 6).
+    ``position`` (K, 3) m ENU from the origin; ``q`` (K, 4) x, y, z, w body FLU -> ENU;
+    ``pose_cov`` (K, 6, 6) position (m) and attitude about the ENU axes (rad);
+    ``v_b`` (K, 3) m/s and ``w_b`` (K, 3) rad/s in the body axes; ``twist_cov`` (K, 6, 6).
     """
 
     position: np.ndarray
@@ -36,30 +36,33 @@ class OdometryFrame:
     def __init__(self):
         self.origin = None
 
-    def sample(self, out, P_nav, w_b, gyro_bias, rate_var, k=-1):
-        """Return row ``k`` (default the last) of pipeline output ``out`` as :class:`Odometry`.
+    def samples(self, out, P_nav, w_b, gyro_bias, rate_var):
+        """Return the rows of pipeline output ``out`` as :class:`Odometry` of arrays.
 
-        ``P_nav`` (9, 9) position, velocity, misalignment covariance; ``w_b`` (3,) the
-        sample's body rate (rad/s, before bias correction); ``gyro_bias`` (3,) rad/s;
-        ``rate_var`` the rate noise variance per axis ((rad/s)^2). None when the row has
-        no navigation solution or attitude.
+        ``P_nav`` (9, 9) position, velocity, misalignment covariance (one for every row:
+        no GNSS update happens between them); ``w_b`` (K, 3) the samples' body rates
+        (rad/s, before bias correction); ``gyro_bias`` (3,) rad/s; ``rate_var`` the rate
+        noise variance per axis ((rad/s)^2). Returns ``(ok, odo)``: ``ok`` (K,) the rows
+        with a navigation solution and attitude, ``odo`` their samples (fields with a
+        leading axis of ``ok.sum()``), or ``(ok, None)`` when there is none.
         """
-        nav = out.nav[k]
-        q = out.q[k]
-        if not (np.all(np.isfinite(nav)) and np.isfinite(q[0])):
-            return None
-        lat, lon, h = nav[:3]
+        nav, q = out.nav, out.q
+        ok = np.isfinite(nav).all(axis=1) & np.isfinite(q[:, 0])
+        if not ok.any():
+            return ok, None
+        nav, q = nav[ok], q[ok]
         if self.origin is None:
-            self.origin = (float(lat), float(lon), float(h))
-        pos = earth.local_offset_m(*self.origin, np.array([lat]), np.array([lon]),
-                                   np.array([h]))[0]
-        C = quat_to_dcm(q)
-        ip = np.r_[0:3, 6:9]
-        v_b = C.T @ nav[3:]
+            self.origin = tuple(float(x) for x in nav[0, :3])
+        pos = earth.local_offset_m(*self.origin, nav[:, 0], nav[:, 1], nav[:, 2])
+        C_T = quat_to_dcm(q).transpose(0, 2, 1)          # (K, 3, 3) n -> b
+        v_n = nav[:, 3:6]
+        v_b = np.einsum('kij,kj->ki', C_T, v_n)
         # v_b = C~^T v~ = v_b + C^T dV - C^T [v x] phi (C~ = (I - [phi x]) C)
-        J = np.hstack([C.T, -C.T @ skew(nav[3:])])
-        twist_cov = np.zeros((6, 6))
-        twist_cov[:3, :3] = J @ P_nav[3:, 3:] @ J.T
-        twist_cov[3:, 3:] = np.eye(3) * rate_var
-        return Odometry(pos, q, P_nav[np.ix_(ip, ip)], v_b,
-                        np.asarray(w_b, dtype=float) - gyro_bias, twist_cov)
+        J = np.concatenate([C_T, -C_T @ skew(v_n)], axis=2)          # (K, 3, 6)
+        twist_cov = np.zeros((len(q), 6, 6))
+        twist_cov[:, :3, :3] = J @ P_nav[3:, 3:] @ J.transpose(0, 2, 1)
+        twist_cov[:, 3:, 3:] = np.eye(3) * rate_var
+        ip = np.r_[0:3, 6:9]
+        pose_cov = np.broadcast_to(P_nav[np.ix_(ip, ip)], (len(q), 6, 6))
+        w = np.asarray(w_b, dtype=float)[ok] - gyro_bias
+        return ok, Odometry(pos, q, pose_cov, v_b, w, twist_cov)

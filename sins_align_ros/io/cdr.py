@@ -83,9 +83,25 @@ def header_bytes(stamp, frame_id):
     ``frame_id`` str. The result followed by a message body whose first field is a
     double (an Imu's ``orientation``) is the whole serialized message.
     """
-    text = frame_id.encode() + b'\0'
-    head = bytes(CDR_LE) + b'\0\0' + stamp + len(text).to_bytes(4, 'little') + text
-    return head + bytes(-(len(head) - 4) % 8)
+    body = stamp + _string(frame_id)
+    return bytes(CDR_LE) + b'\0\0' + body + bytes(-len(body) % 8)
+
+
+def odometry_head(stamp, frame_id, child_frame_id):
+    """Serialize a ``nav_msgs/Odometry``'s start: encapsulation, header, ``child_frame_id``.
+
+    Padded to 8: followed by the 85 doubles of the pose and twist with their
+    covariances it is the whole message (the layout :func:`decode_odometry_q` reads).
+    """
+    body = stamp + _string(frame_id)
+    body += bytes(-len(body) % 4) + _string(child_frame_id)
+    return bytes(CDR_LE) + b'\0\0' + body + bytes(-len(body) % 8)
+
+
+def _string(text):
+    """A CDR string: its length with the NUL (uint32), the UTF-8 characters and a NUL."""
+    raw = text.encode() + b'\0'
+    return len(raw).to_bytes(4, 'little') + raw
 
 
 def header_fields(head):

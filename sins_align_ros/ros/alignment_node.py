@@ -61,7 +61,7 @@ from std_srvs.srv import Trigger
 from .conversions import set_vector3, stamp_to_sec
 from .diagnostics import FaultLog, alignment_status
 from .imu_wire import ImuRows, echo_bodies, header_message
-from .messages import odometry_message
+from .messages import odometry_bodies
 from .params import declare
 from .runner import make_executor, run
 from ..align import params as prm
@@ -115,6 +115,7 @@ class AlignmentShell:
         self._period_imu = [0, 0]     # IMU messages received, accepted in this period
         self._events = []
         self.odom = OdometryFrame()
+        self._odom_heads = {}                 # (frame, Imu header's frame part): ~/odom's
         #: IMU messages waiting for the batch: (stamp, message); when the first came (s)
         self._batch = []
         self._batch_wall = 0.0
@@ -314,32 +315,40 @@ class AlignmentShell:
                     set_vector3(self._euler.vector, out.euler[k])
                     self.pub_euler.publish(self._euler)
         if out.nav is not None:
-            state = self._odometry_state()
-            for k, (_, head, body) in enumerate(srcs):
-                self._publish_odom(head, body[cdr.IMU_RATE], out, k, state)
+            self._publish_odom(srcs, bodies[:, cdr.IMU_RATE], out)
 
-    def _odometry_state(self):
-        """Return the batch end's ``(P_nav, gyro_bias, rate_var)`` for its ~/odom rows.
+    def _publish_odom(self, srcs, w_b, out):
+        """Publish ``~/odom`` for the rows of ``out`` (``srcs`` their samples, rates ``w_b``).
 
         No GNSS update happens inside a batch (a GNSS message flushes it first), so the
         filter's covariance and bias at its end serve every row.
         """
         pipe = self.pipeline
         dt = self.session.imu_input.dt_nominal or 0.01
-        return pipe.nav_cov(), pipe.engine.gyro_bias, pipe.noise.gyro_arw ** 2 / dt
+        ok, odo = self.odom.samples(out, pipe.nav_cov(), w_b, pipe.engine.gyro_bias,
+                                    pipe.noise.gyro_arw ** 2 / dt)
+        if odo is None:
+            return
+        publish, frame = self.pub_odom.publish, self.p['odom_frame_id']
+        rows = iter(odometry_bodies(odo))
+        for (_, head, _), k in zip(srcs, ok.tolist()):
+            if k:
+                publish(self._odom_head(head, frame) + next(rows).tobytes())
 
-    def _publish_odom(self, head, w_b, out, k, state):
-        """Publish row ``k`` with the batch end's filter ``state`` (:meth:`_odometry_state`).
+    def _odom_head(self, imu_head, frame_id):
+        """Return ``~/odom``'s serialized start for the sample whose Imu starts ``imu_head``.
 
-        ``head``: the serialized start of the sample's message (its header); ``w_b`` (3,)
-        its rate, rad/s.
+        Its stamp, ``frame_id`` and the sample's frame as the child frame; the part after
+        the stamp is the same for every sample of a frame, so it is made once.
         """
-        P_nav, gyro_bias, rate_var = state
-        odo = self.odom.sample(out, P_nav, w_b, gyro_bias, rate_var, k)
-        if odo is not None:
-            header = header_message(head)
-            self.pub_odom.publish(odometry_message(header.stamp, self.p['odom_frame_id'],
-                                                   header.frame_id, odo))
+        key = (frame_id, imu_head[12:])
+        rest = self._odom_heads.get(key)
+        if rest is None:
+            if len(self._odom_heads) > 64:           # frame ids that keep changing
+                self._odom_heads.clear()
+            child = cdr.header_fields(imu_head)[2]
+            rest = self._odom_heads[key] = cdr.odometry_head(bytes(8), frame_id, child)[12:]
+        return imu_head[:12] + rest
 
     def _publish_diagnostics(self):
         session = self.session

@@ -1,22 +1,19 @@
-"""Messages the alignment node publishes as objects, built from pipeline output rows.
+"""Serialized bodies of the messages the alignment node publishes at the IMU rate.
 
-``imu/data`` goes out as bytes (:mod:`.imu_wire`).
+``imu/data`` is built in :mod:`.imu_wire` (the input's bytes with the attitude);
+``~/odom`` here.
 """
-from nav_msgs.msg import Odometry
-
-from .conversions import set_quaternion, set_vector3
+import numpy as np
 
 
-def odometry_message(stamp, frame_id, child_frame_id, odo):
-    """``~/odom`` from an :class:`~sins_align_ros.align.odometry.Odometry` sample."""
-    o = Odometry()
-    o.header.stamp = stamp
-    o.header.frame_id = frame_id
-    o.child_frame_id = child_frame_id
-    set_vector3(o.pose.pose.position, odo.position)
-    set_quaternion(o.pose.pose.orientation, odo.q)
-    o.pose.covariance = [float(v) for v in odo.pose_cov.ravel()]
-    set_vector3(o.twist.twist.linear, odo.v_b)
-    set_vector3(o.twist.twist.angular, odo.w_b)
-    o.twist.covariance = [float(v) for v in odo.twist_cov.ravel()]
-    return o
+def odometry_bodies(odo):
+    """Return the serialized bodies (K, 85) of ``nav_msgs/Odometry`` from batch ``odo``.
+
+    ``odo``: an :class:`~sins_align_ros.align.odometry.Odometry` of K rows. The columns
+    follow the message: ``pose.pose`` position (3) and orientation (4), its covariance
+    (36), ``twist.twist`` linear (3) and angular (3), its covariance (36);
+    ``cdr.odometry_head(...) + row.tobytes()`` is the message.
+    """
+    k = len(odo.q)
+    return np.concatenate([odo.position, odo.q, np.reshape(odo.pose_cov, (k, 36)), odo.v_b,
+                           odo.w_b, np.reshape(odo.twist_cov, (k, 36))], axis=1)
