@@ -143,3 +143,19 @@ def test_odometry_bytes_are_the_message_rclpy_reads():
             assert np.array_equal((t.linear.x, t.linear.y, t.linear.z), odo.v_b[i])
             assert np.array_equal((t.angular.x, t.angular.y, t.angular.z), odo.w_b[i])
             assert np.array_equal(m.twist.covariance, odo.twist_cov[i].ravel())
+
+
+def test_one_layout_shortcut_decodes_as_the_general_path(monkeypatch):
+    from sins_align_ros.io import cdr
+    for frame in ('', 'a', 'imu_link', 'x' * 13):
+        raws = [serialize_message(_imu(k, frame)[0]) for k in range(10)]
+        assert cdr._one_layout(raws) is not None
+        fast = cdr.imu_bodies(raws)
+        with monkeypatch.context() as m:
+            m.setattr(cdr, '_one_layout', lambda raws: None)
+            general = cdr.imu_bodies(raws)
+        for a, b in zip(fast, general):
+            assert np.array_equal(a, b)
+        other = serialize_message(_imu(11, frame + 'z')[0])   # another frame id length
+        assert cdr._one_layout(raws + [other]) is None
+        assert cdr._one_layout(raws[:3] + [raws[3][:-8]]) is None     # one cut short
