@@ -39,9 +39,24 @@ class StrongTracking:
 
         ``y`` innovation (m,); ``P_pred`` one-step covariance without fading;
         ``Pxz`` its cross covariance with the measurement; ``Q``, ``R`` noise.
+        :meth:`add_innovation` then :meth:`current_factors`.
+        """
+        self.add_innovation(y)
+        return self.current_factors(P_pred, Pxz, Q, R)
+
+    def add_innovation(self, y):
+        """Take the epoch's innovation ``y`` (m,) into its covariance ``V_k`` (eq. 10).
+
+        Every epoch, whether its factors are wanted or not (:meth:`current_factors`).
         """
         yy = np.outer(y, y)
         self.V = yy if self.V is None else (self.rho * self.V + yy) / (1.0 + self.rho)  # eq. 10
+
+    def current_factors(self, P_pred, Pxz, Q, R):
+        """Fading factors ``lambda_i`` (n,) with the current ``V_k`` (eq. 8-16).
+
+        Arguments as :meth:`factors`'; after :meth:`add_innovation` of the epoch.
+        """
         # eq. 13, H = Pxz^T P^-1, solved on the correlation matrix: P mixes
         # variances of metres and of micro-radians per second, so P itself is
         # too ill-conditioned (1e16 here) to be inverted as it stands

@@ -145,15 +145,16 @@ class ASCKF:
         """Square root of the faded prediction covariance (eq. 7-17, 35); sets ``self.lam``.
 
         ``probe``: the update from the un-faded prediction ``S_l`` (the (l) quantities).
+        The innovation enters ``V_k`` (eq. 10) at every epoch; the factors themselves
+        (eq. 8-16) are computed only where the gate and the whiteness test let them apply
+        (else they are all 1).
         """
         key = tuple(idx.tolist())
         tracking = self._tracking.get(key)
         if tracking is None:
             tracking = self._tracking[key] = StrongTracking(
                 self._alpha, self._rho, self._beta, self._lambda_max)
-        R = self._R_used(idx)
-        P_l = S_l @ S_l.T
-        self.lam = tracking.factors(probe.y, P_l, probe.Pxz, self.Q, R)
+        tracking.add_innovation(probe.y)                                          # eq. 10
         apply = True
         if self.fading_gate is not None:
             apply = nis(probe.y, probe.Pzz) > self.fading_gate[len(idx)]
@@ -161,12 +162,18 @@ class ASCKF:
             L, r_min = self.whiteness
             hist = self._w_hist.setdefault(key, deque(maxlen=int(L) + 1))
             hist.append(np.linalg.solve(chol_lower(probe.Pzz), probe.y))
-            W = np.asarray(hist)[1:]
             self.white = not (len(hist) > L and lag1_correlation(hist) > r_min)
-            apply = (apply and not self.white
-                     and float(np.sum(W * W)) > chi2_quantile(0.99, W.size))
+            if apply and not self.white:
+                W = np.asarray(hist)[1:]
+                apply = float(np.sum(W * W)) > chi2_quantile(0.99, W.size)
+            else:
+                apply = False
         if not apply:
-            self.lam = np.ones_like(self.lam)
+            self.lam = np.ones(len(self.x))
+            self.faded = False
+            return S_l
+        P_l = S_l @ S_l.T
+        self.lam = tracking.current_factors(P_l, probe.Pxz, self.Q, self._R_used(idx))
         if self.var_max is not None:
             cap = np.maximum(self.var_max / np.clip(np.diag(P_l), 1e-300, None), 1.0)
             self.lam = np.minimum(self.lam, cap)
