@@ -51,6 +51,7 @@ from .convergence import ConvergenceMonitor
 from .expectation import SigmaHistory
 from .fine_epochs import EpochUpdates
 from .gnss_gate import FilterDiverged
+from .imu_input import intervals
 from .output import Rows, one_row
 from .sideslip import SideslipCheck
 
@@ -261,7 +262,7 @@ class FineStage(EpochUpdates):
                    if d is not None]
             due_at = min(due) if due else None
             end = n if due_at is None else due_at + 1
-            dt = np.diff(t[k:end], prepend=c.t_last)
+            dt = intervals(t[k:end], c.t_last)
             blk = eng.step_block(dtheta[k:end], dv[k:end], dt)
             last = k + blk.end - 1
             Cs[k:last + 1] = blk.C

@@ -53,6 +53,19 @@ SKIP_REASONS = ('nan', 'saturated', 'field_missing', 'wrong_frame', 'stamp_not_i
                 'undecodable')
 
 
+def intervals(t, t_prev):
+    """Sample intervals ``dt`` (N,) of stamps ``t`` (N,) after ``t_prev``, s.
+
+    ``dt[0] = t[0] - t_prev``, ``dt[k] = t[k] - t[k-1]``: ``np.diff(t, prepend=t_prev)``,
+    the same numbers without its concatenation (a block of samples at every GNSS epoch).
+    """
+    dt = np.empty(len(t))
+    if len(t):
+        dt[0] = t[0] - t_prev
+        np.subtract(t[1:], t[:-1], out=dt[1:])
+    return dt
+
+
 class ImuInput:
     """Stateful converter; see the module docstring.
 
@@ -170,7 +183,7 @@ class ImuInput:
         t = np.asarray(t, dtype=float)
         w_b = np.asarray(w_b, dtype=float)
         f_b = np.asarray(f_b, dtype=float)
-        dt = np.diff(t, prepend=self.t_last)
+        dt = intervals(t, self.t_last)
         # (a NaN or infinite component fails its range test: no separate finiteness test)
         plain = (np.isfinite(t)
                  & (np.abs(w_b).max(axis=1) < 0.999 * self.gyro_range)

@@ -306,7 +306,10 @@ class Strapdown:
         dtheta = np.require(dtheta, float, ['C', 'W'])
         dv = np.require(dv, float, ['C', 'W'])
         n = len(dtheta)
-        dt = np.require(np.broadcast_to(np.asarray(dt, dtype=float), (n,)), float, ['C', 'W'])
+        dt = np.asarray(dt, dtype=float)
+        if dt.shape != (n,):              # one interval for every sample
+            dt = np.broadcast_to(dt, (n,))
+        dt = np.require(dt, float, ['C', 'W'])
         out = {'C_b_n': np.empty((n, 3, 3)), 'v_n': np.empty((n, 3)), 'pos': np.empty((n, 3)),
                'dv_sf': np.empty((n, 3))}
         if n == 0:
