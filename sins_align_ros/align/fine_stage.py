@@ -95,6 +95,7 @@ class FineStage(EpochUpdates):
         #: bounds and the consistency monitor decide
         self.converged = False
         self.floor = np.asarray(floor, dtype=float)
+        self._floor_cov = np.diag(self.floor)
         self.clock = clock
         self.phase = FINE
         self.stage = 1
@@ -132,7 +133,7 @@ class FineStage(EpochUpdates):
     def attitude_cov(self):
         """Misalignment covariance about ENU (3, 3) with the floor; cached between epochs."""
         if self._att_cov is None:
-            P = self.engine.attitude_cov() + np.diag(self.floor)
+            P = self.engine.attitude_cov() + self._floor_cov
             if self.mounting_doubt:       # the IMU's attitude, not the vehicle's
                 P = np.diag(np.full(3, ANGLE_UNKNOWN_VAR))
             elif not self.heading_known:
@@ -142,7 +143,7 @@ class FineStage(EpochUpdates):
                 # raising diagonal entries keeps P positive semi-definite
                 for k in (0, 1):
                     P[k, k] = max(P[k, k], self.tilt_bound)
-            elif np.any(np.diag(P) > ANGLE_UNKNOWN_VAR):
+            elif (P.diagonal() > ANGLE_UNKNOWN_VAR).any():
                 P = cap_angles(P, np.arange(3))
             self._att_cov = P
         return self._att_cov

@@ -136,7 +136,7 @@ class ASCKF:
 
     def _R_used(self, idx):
         """Measurement noise (m, m) of rows ``idx``: the estimate plus what is lent."""
-        R = self.R[np.ix_(idx, idx)]
+        R = self.R[idx][:, idx]                         # the rows and columns of idx
         if self.R_lent is not None:
             R = R + np.diag(np.asarray(self.R_lent, dtype=float)[idx])
         return R

@@ -71,7 +71,7 @@ class KF(CovarianceFilter):
         self.predict(fx)
         self.P_nominal = self.P
         H = measurement_matrix(hx, len(self.x))
-        R = self.R_prior()[np.ix_(idx, idx)]
+        R = self.R_prior()[idx][:, idx]                 # the rows and columns of idx
         y = z - H @ self.x
         S = H @ self.P @ H.T + R
         self.last = PriorInnovation(y, S)
