@@ -129,7 +129,7 @@ def odometry_head(stamp, frame_id, child_frame_id):
 
 
 def _string(text):
-    """A CDR string: its length with the NUL (uint32), the UTF-8 characters and a NUL."""
+    """Return a CDR string: its length with the NUL (uint32), the UTF-8 characters, a NUL."""
     raw = text.encode() + b'\0'
     return len(raw).to_bytes(4, 'little') + raw
 
