@@ -33,6 +33,14 @@ CDR_LE = (0x00, 0x01)
 #: bytes of the message body after the aligned start of ``orientation``
 _BODY = 296
 
+#: columns of :func:`imu_bodies`' rows: orientation (x, y, z, w), its covariance (9),
+#: angular velocity (3), its covariance, linear acceleration (3), its covariance
+IMU_ORIENTATION, IMU_ORIENTATION_COV = slice(0, 4), slice(4, 13)
+IMU_RATE, IMU_RATE_COV = slice(13, 16), slice(16, 25)
+IMU_ACCELERATION, IMU_ACCELERATION_COV = slice(25, 28), slice(28, 37)
+#: doubles in an Imu body (from ``orientation`` on)
+IMU_DOUBLES = _BODY // 8
+
 
 def decode_imu(raws):
     """Decode a list of serialized Imu messages (bytes, in order).
@@ -44,8 +52,13 @@ def decode_imu(raws):
     general deserialiser). ``frame_id`` is not returned.
     """
     t, body, _, ok = imu_bodies(raws)
-    missing = ok & ((body[:, 16] == -1.0) | (body[:, 28] == -1.0))
-    return t, body[:, 13:16], body[:, 25:28], missing, ok
+    missing = ok & imu_missing(body)
+    return t, body[:, IMU_RATE], body[:, IMU_ACCELERATION], missing, ok
+
+
+def imu_missing(body):
+    """(N,) True where a body (N, 37) marks its rate or acceleration not provided (REP-145)."""
+    return (body[:, IMU_RATE_COV.start] == -1.0) | (body[:, IMU_ACCELERATION_COV.start] == -1.0)
 
 
 def imu_bodies(raws):
@@ -61,11 +74,11 @@ def imu_bodies(raws):
     if one is not None:
         return one
     n = len(raws)
-    t, body = np.full(n, np.nan), np.full((n, _BODY // 8), np.nan)
+    t, body = np.full(n, np.nan), np.full((n, IMU_DOUBLES), np.nan)
     a0, ok = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=bool)
     for g in _groups(raws):
         a = _align(g.string_end(np.full(len(g.idx), 8)), 8)
-        rows = g.f8(a, _BODY // 8)
+        rows = g.f8(a, IMU_DOUBLES)
         g.ends_at(a + _BODY)
         i, k = g.idx[g.ok], g.ok
         t[i], body[i], a0[i], ok[i] = g.stamp()[k], rows[k], a[k], True
@@ -97,13 +110,6 @@ def _one_layout(raws):
     t = stamp[:, 0].view('<i4').astype(float) + stamp[:, 1] * 1e-9
     body = rows[:, 4 + a:4 + a + _BODY].copy().view('<f8')
     return t, body, np.full(n, a, dtype=np.int64), np.ones(n, dtype=bool)
-
-
-#: columns of :func:`imu_bodies`' rows: orientation (x, y, z, w), its covariance (9),
-#: angular velocity (3), its covariance, linear acceleration (3), its covariance
-IMU_ORIENTATION, IMU_ORIENTATION_COV = slice(0, 4), slice(4, 13)
-IMU_RATE, IMU_RATE_COV = slice(13, 16), slice(16, 25)
-IMU_ACCELERATION, IMU_ACCELERATION_COV = slice(25, 28), slice(28, 37)
 
 
 def header_bytes(stamp, frame_id):

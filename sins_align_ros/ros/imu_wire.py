@@ -19,11 +19,6 @@ from std_msgs.msg import Header
 
 from ..io import cdr
 
-#: doubles in an Imu body: orientation (4), its covariance (9), rate (3), its covariance
-#: (9), acceleration (3), its covariance (9)
-_BODY = 37
-
-
 class ImuRows:
     """A batch of serialized Imu messages, decoded.
 
@@ -62,7 +57,7 @@ class ImuRows:
     @property
     def missing(self):
         """(N,) bool: rate or acceleration marked not provided (covariance[0] = -1, REP-145)."""
-        return (self.body[:, 16] == -1.0) | (self.body[:, 28] == -1.0)
+        return cdr.imu_missing(self.body)
 
     def frame_ids(self):
         """Return the N frame ids (str)."""
@@ -98,7 +93,7 @@ def echo_bodies(src_bodies, q, P_phi):
     ``q`` (K, 4) orientation (x, y, z, w), NaN while unknown: then identity with
     ``orientation_covariance[0] = -1`` (REP-145); ``P_phi`` (K, 3, 3) its covariance.
     """
-    out = np.array(src_bodies, dtype=float).reshape(-1, _BODY)
+    out = np.array(src_bodies, dtype=float).reshape(-1, cdr.IMU_DOUBLES)
     known = np.isfinite(q[:, 0])
     out[:, cdr.IMU_ORIENTATION] = np.where(known[:, None], q, (0.0, 0.0, 0.0, 1.0))
     unknown_cov = np.zeros(9)
