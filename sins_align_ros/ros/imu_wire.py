@@ -19,6 +19,7 @@ from std_msgs.msg import Header
 
 from ..io import cdr
 
+
 class ImuRows:
     """A batch of serialized Imu messages, decoded.
 
