@@ -32,6 +32,9 @@ import numpy as np
 CDR_LE = (0x00, 0x01)
 #: bytes of the message body after the aligned start of ``orientation``
 _BODY = 296
+#: the bytes of ``header.stamp`` (sec, nanosec) in a serialized message; what follows
+#: depends only on the frame id (and, for Odometry, the child frame id)
+STAMP = slice(4, 12)
 
 #: columns of :func:`imu_bodies`' rows: orientation (x, y, z, w), its covariance (9),
 #: angular velocity (3), its covariance, linear acceleration (3), its covariance
@@ -106,7 +109,7 @@ def _one_layout(raws):
     rows = rows.reshape(n, size)
     if not (rows[:, :2] == rows[0, :2]).all() or not (rows[:, 12:16] == rows[0, 12:16]).all():
         return None
-    stamp = rows[:, 4:12].copy().view('<u4')
+    stamp = rows[:, STAMP].copy().view('<u4')
     t = stamp[:, 0].view('<i4').astype(float) + stamp[:, 1] * 1e-9
     body = rows[:, 4 + a:4 + a + _BODY].copy().view('<f8')
     return t, body, np.full(n, a, dtype=np.int64), np.ones(n, dtype=bool)
@@ -142,8 +145,8 @@ def _string(text):
 
 def header_fields(head):
     """Return ``(sec, nanosec, frame_id)`` of a serialized little-endian message's header."""
-    sec = int.from_bytes(head[4:8], 'little', signed=True)
-    nsec = int.from_bytes(head[8:12], 'little')
+    sec = int.from_bytes(head[STAMP][:4], 'little', signed=True)
+    nsec = int.from_bytes(head[STAMP][4:], 'little')
     size = int.from_bytes(head[12:16], 'little')
     return sec, nsec, head[16:15 + size].decode(errors='replace')
 

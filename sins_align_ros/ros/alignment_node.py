@@ -341,14 +341,15 @@ class AlignmentShell:
         Its stamp, ``frame_id`` and the sample's frame as the child frame; the part after
         the stamp is the same for every sample of a frame, so it is made once.
         """
-        key = (frame_id, imu_head[12:])
+        end = cdr.STAMP.stop
+        key = (frame_id, imu_head[end:])
         rest = self._odom_heads.get(key)
         if rest is None:
             if len(self._odom_heads) > 64:           # frame ids that keep changing
                 self._odom_heads.clear()
             child = cdr.header_fields(imu_head)[2]
-            rest = self._odom_heads[key] = cdr.odometry_head(bytes(8), frame_id, child)[12:]
-        return imu_head[:12] + rest
+            rest = self._odom_heads[key] = cdr.odometry_head(bytes(8), frame_id, child)[end:]
+        return imu_head[:end] + rest
 
     def _publish_diagnostics(self):
         session = self.session

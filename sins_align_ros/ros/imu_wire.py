@@ -81,7 +81,7 @@ class ImuRows:
             b[:, vec] = b[:, vec] @ C_s_v.T
             P = b[:, cov].reshape(-1, 3, 3)
             b[:, cov] = (C_s_v @ P @ C_s_v.T).reshape(-1, 9)
-        self.head = [cdr.header_bytes(h[4:12], frame_id) for h in self.head]
+        self.head = [cdr.header_bytes(h[cdr.STAMP], frame_id) for h in self.head]
 
     def rows(self):
         """Return ``[(t, head, body row)]``: what an output row refers back to."""
