@@ -9,10 +9,11 @@ import pytest
 
 from sins_align_ros.filters import kf
 from sins_align_ros.filters.adaptive import SageHusa, StrongTracking
-from sins_align_ros.filters.cubature import (chol_lower, ckf_predict, ckf_update,
+from sins_align_ros.filters.cubature import (batched, chol_lower, ckf_predict, ckf_update,
                                              cubature_points, srckf_predict, srckf_update, tria,
                                              tria_lapack)
 from sins_align_ros.filters.ukf import ukf_predict, ukf_update
+from sins_align_ros.nav import kernels
 
 DT = 0.1
 
@@ -63,6 +64,40 @@ def test_tria_compiled_householder_equals_lapack_qr(n, k):
     S, ref = tria(A), tria_lapack(A)
     assert np.array_equal(S, np.tril(S)) and np.all(np.diag(S) >= 0)
     assert np.abs(S - ref).max() <= 1e-14 * np.abs(ref).max()
+
+
+@pytest.mark.skipif(not kernels.COMPILED, reason='numba not installed or switched off')
+@pytest.mark.parametrize('fading', [False, True])
+def test_compiled_square_root_ckf_equals_its_numpy_reference(fading, monkeypatch):
+    """The compiled SRCKF moments (issue 22) against the numpy lines they replace.
+
+    13 states of very different scales, 4 measurements, a nonlinear transition and
+    measurement; a singular innovation covariance raises as numpy's solve does.
+    """
+    rng = np.random.default_rng(22)
+    n, m = 13, 4
+    scale = 10.0 ** rng.integers(-6, 1, n)
+    A = rng.normal(size=(n, n)) * scale[:, None]
+    S = np.linalg.cholesky(A @ A.T + np.diag(scale ** 2))
+    x = rng.normal(size=n) * scale
+    B = np.eye(n) + 0.1 * rng.normal(size=(n, n)) * scale[:, None] / scale[None, :]
+    f = batched(lambda X: B @ X + 0.01 * np.sin(X / scale[:, None]) * scale[:, None])
+    H = rng.normal(size=(m, n)) / scale[None, :]
+    h = batched(lambda X: H @ X + 0.05 * (X[:m] / scale[:m, None]) ** 2)
+    SQ, SR = np.diag(0.1 * scale), np.diag(rng.uniform(0.1, 1.0, m))
+    z, fade = rng.normal(size=m), (rng.uniform(1.0, 2.0, n) if fading else None)
+    fast = srckf_predict(x, S, f, SQ, fade), srckf_update(x, S, z, h, SR)
+    monkeypatch.setattr(kernels, 'COMPILED', False)
+    ref = srckf_predict(x, S, f, SQ, fade), srckf_update(x, S, z, h, SR)
+    pairs = [*zip(ref[0], fast[0]), *zip(ref[1][:2], fast[1][:2])]
+    pairs += [(getattr(ref[1][2], k), getattr(fast[1][2], k))
+              for k in ('y', 'z_pred', 'Pzz', 'Pxz', 'K', 'eta', 'chi')]
+    for a, b in pairs:
+        assert a.shape == b.shape
+        assert np.abs(a - b).max() <= 1e-13 * np.abs(a).max()        # measured: 1.3e-15
+    monkeypatch.setattr(kernels, 'COMPILED', True)
+    with pytest.raises(np.linalg.LinAlgError):
+        srckf_update(x, S, z, batched(lambda X: np.zeros((m, X.shape[1]))), np.zeros((m, m)))
 
 
 def test_ckf_matches_filterpy_to_round_off():

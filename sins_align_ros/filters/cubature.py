@@ -81,6 +81,12 @@ def _tria_householder(A, S):
 @kernels.warms_up
 def _first_calls():
     _tria_householder(np.zeros((2, 4)), np.empty((2, 2)))
+    _predict_moments(np.zeros((2, 4)), np.ones(2), np.eye(2), np.empty(2), np.empty((2, 4)),
+                     np.empty((2, 2)))
+    _update_moments(np.zeros((2, 4)), np.zeros(2), np.zeros((1, 4)), np.zeros(1),
+                    np.eye(1), np.empty(2), np.empty((2, 2)), np.empty(1), np.empty(1),
+                    np.empty((1, 4)), np.empty((2, 4)), np.empty((1, 1)), np.empty((2, 1)),
+                    np.empty((2, 1)))
 
 
 def tria_lapack(A):
@@ -192,24 +198,71 @@ def srckf_predict(x, S, fx, SQ, fading_sqrt=None):
     ``fading_sqrt`` (n,): the square roots of the multiple fading factors
     (eq. 17); they scale the rows of the weighted deviations before ``Tria``.
     Returns ``(x_pred, S_pred, chi_star)`` with ``chi_star`` (n, 2n) of eq. 27.
+    After ``fx``, the moments and ``Tria`` are one compiled call when the kernels are
+    (:func:`_predict_moments`); the numpy lines below are its reference.
     """
     n = len(x)
     X = S @ cubature_points(n) + x[:, None]
     Xp = _propagate(fx, X)
+    if kernels.COMPILED:
+        xp, chi_star, S_pred = np.empty(n), np.empty((n, 2 * n)), np.empty((n, n))
+        fade = np.ones(n) if fading_sqrt is None else np.asarray(fading_sqrt, dtype=float)
+        _predict_moments(np.ascontiguousarray(Xp, dtype=float), fade,
+                         np.ascontiguousarray(SQ, dtype=float), xp, chi_star, S_pred)
+        return xp, S_pred, chi_star
     xp = Xp.mean(axis=1)
     chi_star = (Xp - xp[:, None]) / np.sqrt(2 * n)
     lead = chi_star if fading_sqrt is None else fading_sqrt[:, None] * chi_star
     return xp, tria(np.hstack([lead, SQ])), chi_star
 
 
+@kernels.jit(sig='void(f8[:, :], f8[:], f8[:, :], f8[:], f8[:, :], f8[:, :])')
+def _predict_moments(Xp, fade, SQ, xp, chi_star, S):
+    """Compiled tail of :func:`srckf_predict`: ``xp`` (n,), ``chi_star`` (n, 2n), ``S`` (n, n).
+
+    From the propagated points ``Xp`` (n, 2n), the fading roots ``fade`` (n,) and
+    ``SQ`` (n, q): mean, weighted deviations (eq. 27) and ``Tria([fade chi*, SQ])``.
+    """
+    n, N = Xp.shape
+    q = SQ.shape[1]
+    w = 1.0 / np.sqrt(N)
+    A = np.empty((n, N + q))
+    for i in range(n):
+        m = 0.0
+        for j in range(N):
+            m += Xp[i, j]
+        m /= N
+        xp[i] = m
+        for j in range(N):
+            chi_star[i, j] = (Xp[i, j] - m) * w
+            A[i, j] = fade[i] * chi_star[i, j]
+        for j in range(q):
+            A[i, N + j] = SQ[i, j]
+    _tria_householder(A, S)
+
+
 def srckf_update(x, S, z, hx, SR):
     """Square-root CKF measurement update (eq. 28-38).
 
     Returns ``(x, S, CubatureUpdate)``; ``Pzz = Szz Szz^T`` is given in full too.
+    After ``hx``, the update is one compiled call when the kernels are
+    (:func:`_update_moments`); the numpy lines below are its reference. Raises
+    ``LinAlgError`` when the innovation covariance is singular.
     """
     n = len(x)
     X = S @ cubature_points(n) + x[:, None]
     Z = _propagate(hx, X)
+    if kernels.COMPILED:
+        m = Z.shape[0]
+        x_new, S_new = np.empty(n), np.empty((n, n))
+        y, zp, eta, chi = np.empty(m), np.empty(m), np.empty((m, 2 * n)), np.empty((n, 2 * n))
+        Szz, Pxz, K = np.empty((m, m)), np.empty((n, m)), np.empty((n, m))
+        if not _update_moments(X, np.asarray(x, dtype=float),
+                               np.ascontiguousarray(Z, dtype=float),
+                               np.asarray(z, dtype=float), np.ascontiguousarray(SR, dtype=float),
+                               x_new, S_new, y, zp, eta, chi, Szz, Pxz, K):
+            raise np.linalg.LinAlgError('Singular matrix')
+        return x_new, S_new, CubatureUpdate(y, zp, Szz @ Szz.T, Pxz, K, eta, chi)
     zp = Z.mean(axis=1)
     w = 1.0 / np.sqrt(2 * n)
     eta = (Z - zp[:, None]) * w
@@ -223,3 +276,71 @@ def srckf_update(x, S, z, hx, SR):
     x = x + K @ y
     S = tria(np.hstack([chi - K @ eta, K @ SR]))
     return x, S, CubatureUpdate(y, zp, Szz @ Szz.T, Pxz, K, eta, chi)
+
+
+@kernels.jit(sig='b1(f8[:, :], f8[:], f8[:, :], f8[:], f8[:, :], f8[:], f8[:, :], f8[:], '
+                 'f8[:], f8[:, :], f8[:, :], f8[:, :], f8[:, :], f8[:, :])')
+def _update_moments(X, x, Z, z, SR, x_new, S_new, y, zp, eta, chi, Szz, Pxz, K):
+    """Compiled :func:`srckf_update` after ``hx``; False (nothing usable) if ``Szz`` is singular.
+
+    ``X`` (n, 2n) the points, ``Z`` (m, 2n) their measurements, ``SR`` (m, r). Writes
+    ``x_new``, ``S_new``, ``y``, ``zp``, ``eta``, ``chi``, ``Szz``, ``Pxz`` and ``K``
+    (eq. 28-38; ``K`` by forward and back substitution with ``Szz``).
+    """
+    n, N = X.shape
+    m, r = Z.shape[0], SR.shape[1]
+    w = 1.0 / np.sqrt(N)
+    A = np.empty((m, N + r))
+    for i in range(m):
+        s = 0.0
+        for j in range(N):
+            s += Z[i, j]
+        s /= N
+        zp[i] = s
+        y[i] = z[i] - s
+        for j in range(N):
+            eta[i, j] = (Z[i, j] - s) * w
+            A[i, j] = eta[i, j]
+        for j in range(r):
+            A[i, N + j] = SR[i, j]
+    _tria_householder(A, Szz)
+    for i in range(m):
+        if Szz[i, i] == 0.0:
+            return False
+    for i in range(n):
+        for j in range(N):
+            chi[i, j] = (X[i, j] - x[i]) * w
+        for c in range(m):
+            s = 0.0
+            for j in range(N):
+                s += chi[i, j] * eta[c, j]
+            Pxz[i, c] = s
+        # K[i] = Pxz[i] (Szz Szz^T)^-1: Szz u = Pxz[i]^T, then Szz^T k = u
+        for c in range(m):
+            s = Pxz[i, c]
+            for j in range(c):
+                s -= Szz[c, j] * K[i, j]
+            K[i, c] = s / Szz[c, c]
+        for c in range(m - 1, -1, -1):
+            s = K[i, c]
+            for j in range(c + 1, m):
+                s -= Szz[j, c] * K[i, j]
+            K[i, c] = s / Szz[c, c]
+    B = np.empty((n, N + r))
+    for i in range(n):
+        s = x[i]
+        for c in range(m):
+            s += K[i, c] * y[c]
+        x_new[i] = s
+        for j in range(N):
+            s = chi[i, j]
+            for c in range(m):
+                s -= K[i, c] * eta[c, j]
+            B[i, j] = s
+        for j in range(r):
+            s = 0.0
+            for c in range(m):
+                s += K[i, c] * SR[c, j]
+            B[i, N + j] = s
+    _tria_householder(B, S_new)
+    return True

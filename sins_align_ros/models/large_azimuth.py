@@ -123,15 +123,41 @@ def propagate(x, f_n, v_n, lat, h, dt, substeps=1, C_b_n=None):
         return propagate_reference(x, f_n, v_n, lat, h, dt, substeps, C_b_n)
     x = np.asarray(x, dtype=float)
     X = np.ascontiguousarray(x.reshape(len(x), -1))
-    R_M, R_N = earth.radii(lat)
-    w_ie = earth.w_ie_n(lat)
-    w_in = w_ie + earth.w_en_n(lat, h, v_n)
-    C = np.zeros((3, 3)) if C_b_n is None else np.ascontiguousarray(C_b_n, dtype=float)
-    terms = np.array([R_M + h, R_N + h, np.sin(lat), np.cos(lat), np.tan(lat),
-                      *(2.0 * w_ie + (w_in - w_ie)), *w_in, *f_n, *v_n], dtype=float)
+    C = _NO_ATTITUDE if C_b_n is None else np.ascontiguousarray(C_b_n, dtype=float)
     out = np.empty_like(X)
-    _rk4_columns(X, terms, C, float(dt), int(substeps), out)
+    _rk4_columns(X, float(lat), float(h), np.asarray(f_n, dtype=float),
+                 np.asarray(v_n, dtype=float), C, float(dt), int(substeps), out)
     return out.reshape(x.shape)
+
+
+#: the attitude argument of the compiled transition for 10 states (not read)
+_NO_ATTITUDE = np.zeros((3, 3))
+
+
+@kernels.jit
+def _terms(lat, h, f_n, v_n):
+    """Return the position-dependent constants of :func:`_derivative_column` (17,).
+
+    ``R_M + h, R_N + h, sin L, cos L, tan L, a (3), w_in (3), f_n (3), v_n (3)`` with
+    ``a = 2 w_ie + w_en`` (:func:`~sins_align_ros.nav.earth.radii`,
+    :func:`~sins_align_ros.nav.earth.w_ie_n`, :func:`~sins_align_ros.nav.earth.w_en_n`).
+    """
+    sl, cl = np.sin(lat), np.cos(lat)
+    w = 1.0 - earth.E2 * sl * sl
+    R_N = earth.A / np.sqrt(w)
+    R_M = earth.A * (1.0 - earth.E2) / (w * np.sqrt(w))
+    tl = np.tan(lat)
+    w_en = (-v_n[1] / (R_M + h), v_n[0] / (R_N + h), v_n[0] * tl / (R_N + h))
+    w_ie = (0.0, earth.OMEGA_IE * cl, earth.OMEGA_IE * sl)
+    terms = np.empty(17)
+    terms[0], terms[1], terms[2], terms[3], terms[4] = R_M + h, R_N + h, sl, cl, tl
+    for i in range(3):
+        w_in = w_ie[i] + w_en[i]
+        terms[5 + i] = 2.0 * w_ie[i] + (w_in - w_ie[i])
+        terms[8 + i] = w_in
+        terms[11 + i] = f_n[i]
+        terms[14 + i] = v_n[i]
+    return terms
 
 
 @kernels.jit
@@ -170,10 +196,11 @@ def _derivative_column(x, k, terms, C):
         k[1] += C[1, 0] * x[10] + C[1, 1] * x[11] + C[1, 2] * x[12]
 
 
-@kernels.jit(sig='void(f8[:, :], f8[:], f8[:, :], f8, i8, f8[:, :])')
-def _rk4_columns(X, terms, C, dt, substeps, out):
+@kernels.jit(sig='void(f8[:, :], f8, f8, f8[:], f8[:], f8[:, :], f8, i8, f8[:, :])')
+def _rk4_columns(X, lat, h, f_n, v_n, C, dt, substeps, out):
     """:func:`propagate_reference` of every column of ``X`` (n, N) into ``out`` (n, N)."""
     n, m = X.shape
+    terms = _terms(lat, h, f_n, v_n)
     step = dt / substeps
     x, y = np.empty(n), np.empty(n)
     k1, k2, k3, k4 = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
