@@ -91,7 +91,8 @@ def test_compiled_square_root_ckf_equals_its_numpy_reference(fading, monkeypatch
     ref = srckf_predict(x, S, f, SQ, fade), srckf_update(x, S, z, h, SR)
     pairs = [*zip(ref[0], fast[0]), *zip(ref[1][:2], fast[1][:2])]
     pairs += [(getattr(ref[1][2], k), getattr(fast[1][2], k))
-              for k in ('y', 'z_pred', 'Pzz', 'Pxz', 'K', 'eta', 'chi')]
+              for k in ('y', 'z_pred', 'Pzz', 'Pxz', 'K', 'eta', 'chi', 'Szz', 'w')]
+    assert fast[1][2].nis == pytest.approx(kf.nis(ref[1][2].y, ref[1][2].Pzz), rel=1e-12)
     for a, b in pairs:
         assert a.shape == b.shape
         assert np.abs(a - b).max() <= 1e-13 * np.abs(a).max()        # measured: 1.3e-15

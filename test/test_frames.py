@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 from sins_align_ros.nav import frames as fr
+from sins_align_ros.nav import kernels
 from sins_align_ros.units import DEG
 
 
@@ -142,11 +143,19 @@ def test_euler_sigma_is_the_propagated_covariance_of_a_small_nav_frame_rotation(
         assert np.allclose(np.sqrt(np.clip(np.diag(cov), 0.0, None)), sig[k], rtol=1e-12)
 
 
-@pytest.mark.parametrize('departure', [0.0, 1e-15, 1e-12, 1e-9, 1e-6, 1e-2])
-def test_reorthonormalize_is_the_svd_polar_factor_to_round_off(departure):
+@pytest.mark.parametrize('departure', [0.0, 1e-15, 1e-12, 1e-9, 1e-6, 1e-2, 0.1, 0.3])
+@pytest.mark.parametrize('compiled', [False, True])
+def test_orthonormalize_is_the_svd_polar_factor_to_round_off(departure, compiled, monkeypatch):
+    """Both functions, compiled (Newton-Schulz) or not, against the SVD's ``U V^T``."""
+    if compiled and not kernels.COMPILED:
+        pytest.skip('numba not installed or switched off')
+    monkeypatch.setattr(kernels, 'COMPILED', compiled)
     rng = np.random.default_rng(7)
-    for _ in range(50):
+    for k in range(50):
         C = fr.rotvec_to_dcm(rng.normal(0.0, 1.0, 3)) + rng.normal(0.0, departure, (3, 3))
-        R = fr.reorthonormalize(C)
-        assert np.abs(R - fr.orthonormalize(C)).max() < 2e-14
-        assert np.abs(R.T @ R - np.eye(3)).max() < 2e-15
+        if k == 0:
+            C = C @ np.diag([1.0, 1.0, -1.0])           # a reflection's factor too
+        U, _, Vt = np.linalg.svd(C)
+        for R in (fr.reorthonormalize(C), fr.orthonormalize(C)):
+            assert np.abs(R - U @ Vt).max() < 2e-14
+            assert np.abs(R.T @ R - np.eye(3)).max() < 2e-15

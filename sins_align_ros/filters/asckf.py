@@ -19,7 +19,6 @@ from .adaptive import SageHusa, StrongTracking
 from .base import measurement_rows
 from .cubature import chol_lower, sqrt_psd, srckf_predict, srckf_update, tria
 from .chi2 import chi2_quantile
-from .kf import nis
 
 
 def lag1_correlation(w):
@@ -157,11 +156,11 @@ class ASCKF:
         tracking.add_innovation(probe.y)                                          # eq. 10
         apply = True
         if self.fading_gate is not None:
-            apply = nis(probe.y, probe.Pzz) > self.fading_gate[len(idx)]
+            apply = probe.nis > self.fading_gate[len(idx)]
         if self.whiteness is not None:
             L, r_min = self.whiteness
             hist = self._w_hist.setdefault(key, deque(maxlen=int(L) + 1))
-            hist.append(np.linalg.solve(chol_lower(probe.Pzz), probe.y))
+            hist.append(probe.w)                 # Szz^-1 y: Szz is Pzz's Cholesky factor
             self.white = not (len(hist) > L and lag1_correlation(hist) > r_min)
             if apply and not self.white:
                 W = np.asarray(hist)[1:]
@@ -210,7 +209,7 @@ class ASCKF:
         unfaded = (srckf_update(xp, S_l, z, hx, SR)
                    if max_nis is not None or self.fading else None)
         probe = None if unfaded is None else unfaded[2]
-        if max_nis is not None and nis(probe.y, probe.Pzz) > max_nis:
+        if max_nis is not None and probe.nis > max_nis:
             self.x, self.S, self.rejected, self.last = xp, S_l, True, probe
             if self.adaptive:
                 self.Q, self.R = self.noise.update(probe, idx, self.R_lent)

@@ -86,7 +86,7 @@ def _first_calls():
     _update_moments(np.zeros((2, 4)), np.zeros(2), np.zeros((1, 4)), np.zeros(1),
                     np.eye(1), np.empty(2), np.empty((2, 2)), np.empty(1), np.empty(1),
                     np.empty((1, 4)), np.empty((2, 4)), np.empty((1, 1)), np.empty((2, 1)),
-                    np.empty((2, 1)))
+                    np.empty((2, 1)), np.empty(1))
 
 
 def tria_lapack(A):
@@ -142,7 +142,9 @@ class CubatureUpdate:
 
     ``y`` innovation (m,), ``z_pred`` (m,), ``Pzz`` innovation covariance, ``Pxz``
     cross covariance, ``K`` gain, ``eta`` (m, 2n) weighted measurement deviations
-    (eq. 32), ``chi`` (n, 2n) weighted state deviations (eq. 34).
+    (eq. 32), ``chi`` (n, 2n) weighted state deviations (eq. 34). The square-root
+    update also gives ``Szz`` (m, m), the lower factor of ``Pzz`` (eq. 33), and ``w`` (m,),
+    the whitened innovation ``Szz^-1 y`` (``w^T w`` is the NIS, :attr:`nis`).
     """
 
     y: np.ndarray
@@ -152,6 +154,15 @@ class CubatureUpdate:
     K: np.ndarray
     eta: np.ndarray
     chi: np.ndarray
+    Szz: np.ndarray = None
+    w: np.ndarray = None
+
+    @property
+    def nis(self):
+        """Normalised innovation squared ``y^T Pzz^-1 y``."""
+        if self.w is not None:
+            return float(self.w @ self.w)
+        return float(self.y @ np.linalg.solve(self.Pzz, self.y))
 
 
 def ckf_predict(x, P, fx, Q):
@@ -255,14 +266,15 @@ def srckf_update(x, S, z, hx, SR):
     if kernels.COMPILED:
         m = Z.shape[0]
         x_new, S_new = np.empty(n), np.empty((n, n))
-        y, zp, eta, chi = np.empty(m), np.empty(m), np.empty((m, 2 * n)), np.empty((n, 2 * n))
+        y, zp, w = np.empty(m), np.empty(m), np.empty(m)
+        eta, chi = np.empty((m, 2 * n)), np.empty((n, 2 * n))
         Szz, Pxz, K = np.empty((m, m)), np.empty((n, m)), np.empty((n, m))
         if not _update_moments(X, np.asarray(x, dtype=float),
                                np.ascontiguousarray(Z, dtype=float),
                                np.asarray(z, dtype=float), np.ascontiguousarray(SR, dtype=float),
-                               x_new, S_new, y, zp, eta, chi, Szz, Pxz, K):
+                               x_new, S_new, y, zp, eta, chi, Szz, Pxz, K, w):
             raise np.linalg.LinAlgError('Singular matrix')
-        return x_new, S_new, CubatureUpdate(y, zp, Szz @ Szz.T, Pxz, K, eta, chi)
+        return x_new, S_new, CubatureUpdate(y, zp, Szz @ Szz.T, Pxz, K, eta, chi, Szz, w)
     zp = Z.mean(axis=1)
     w = 1.0 / np.sqrt(2 * n)
     eta = (Z - zp[:, None]) * w
@@ -275,21 +287,22 @@ def srckf_update(x, S, z, hx, SR):
     y = z - zp
     x = x + K @ y
     S = tria(np.hstack([chi - K @ eta, K @ SR]))
-    return x, S, CubatureUpdate(y, zp, Szz @ Szz.T, Pxz, K, eta, chi)
+    w = np.linalg.solve(Szz, y)
+    return x, S, CubatureUpdate(y, zp, Szz @ Szz.T, Pxz, K, eta, chi, Szz, w)
 
 
 @kernels.jit(sig='b1(f8[:, :], f8[:], f8[:, :], f8[:], f8[:, :], f8[:], f8[:, :], f8[:], '
-                 'f8[:], f8[:, :], f8[:, :], f8[:, :], f8[:, :], f8[:, :])')
-def _update_moments(X, x, Z, z, SR, x_new, S_new, y, zp, eta, chi, Szz, Pxz, K):
+                 'f8[:], f8[:, :], f8[:, :], f8[:, :], f8[:, :], f8[:, :], f8[:])')
+def _update_moments(X, x, Z, z, SR, x_new, S_new, y, zp, eta, chi, Szz, Pxz, K, w):
     """Compiled :func:`srckf_update` after ``hx``; False (nothing usable) if ``Szz`` is singular.
 
     ``X`` (n, 2n) the points, ``Z`` (m, 2n) their measurements, ``SR`` (m, r). Writes
-    ``x_new``, ``S_new``, ``y``, ``zp``, ``eta``, ``chi``, ``Szz``, ``Pxz`` and ``K``
-    (eq. 28-38; ``K`` by forward and back substitution with ``Szz``).
+    ``x_new``, ``S_new``, ``y``, ``zp``, ``eta``, ``chi``, ``Szz``, ``Pxz``, ``K``
+    (eq. 28-38; ``K`` by forward and back substitution with ``Szz``) and ``w = Szz^-1 y``.
     """
     n, N = X.shape
     m, r = Z.shape[0], SR.shape[1]
-    w = 1.0 / np.sqrt(N)
+    weight = 1.0 / np.sqrt(N)
     A = np.empty((m, N + r))
     for i in range(m):
         s = 0.0
@@ -299,7 +312,7 @@ def _update_moments(X, x, Z, z, SR, x_new, S_new, y, zp, eta, chi, Szz, Pxz, K):
         zp[i] = s
         y[i] = z[i] - s
         for j in range(N):
-            eta[i, j] = (Z[i, j] - s) * w
+            eta[i, j] = (Z[i, j] - s) * weight
             A[i, j] = eta[i, j]
         for j in range(r):
             A[i, N + j] = SR[i, j]
@@ -307,9 +320,14 @@ def _update_moments(X, x, Z, z, SR, x_new, S_new, y, zp, eta, chi, Szz, Pxz, K):
     for i in range(m):
         if Szz[i, i] == 0.0:
             return False
+    for c in range(m):
+        s = y[c]
+        for j in range(c):
+            s -= Szz[c, j] * w[j]
+        w[c] = s / Szz[c, c]
     for i in range(n):
         for j in range(N):
-            chi[i, j] = (X[i, j] - x[i]) * w
+            chi[i, j] = (X[i, j] - x[i]) * weight
         for c in range(m):
             s = 0.0
             for j in range(N):

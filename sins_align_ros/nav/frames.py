@@ -28,6 +28,7 @@ import math
 import numpy as np
 
 from ..units import ARCMIN, ARCSEC, DEG  # noqa: F401 (re-exported)
+from . import kernels
 
 # --- fixed frame changes (vector components) --------------------------------
 #: v_flu = C_RFU_TO_FLU @ v_rfu  (right-forward-up body -> forward-left-up body)
@@ -127,7 +128,18 @@ def dcm_to_rotvec(C):
 
 
 def orthonormalize(C):
-    """Nearest orthonormal matrix to ``C`` (polar decomposition via SVD)."""
+    """Nearest orthonormal matrix to ``C`` (polar decomposition).
+
+    For a (3, 3) within :data:`~.kernels.POLAR_MAX_DEPARTURE` of orthonormal (an attitude
+    after a filter's feedback, the mean attitude over an interval) the compiled
+    Newton-Schulz iteration (:func:`~.kernels.polar_factor`) when the kernels are;
+    otherwise the SVD's ``U V^T``. The two agree to round-off (test_frames.py).
+    """
+    C = np.asarray(C, dtype=float)
+    if kernels.COMPILED and C.shape == (3, 3):
+        out = np.empty((3, 3))
+        if kernels.polar_factor(np.ascontiguousarray(C), out):
+            return out
     U, _, Vt = np.linalg.svd(C)
     return U @ Vt
 
@@ -142,12 +154,13 @@ def reorthonormalize(C):
     """Nearest orthonormal matrix to a nearly orthonormal ``C`` (3, 3): its polar factor.
 
     For an attitude that is a product of rotations (a filter's feedback ``C_n'^n C_b^n'``),
-    orthonormal but for round-off. With ``E = C^T C - I``: ``C`` itself when ``|E| <
-    1e-15``; one Newton-Schulz step ``C (I - E / 2)`` when ``|E|`` is within
-    :data:`NEWTON_SCHULZ_MAX` (the step squares the departure, ``3/4 |E|^2``, to
-    round-off, as ``nav/kernels.py``'s ``_reorthonormalise`` does); else the SVD. The
-    polar factor to round-off, at half the SVD's cost in the GNSS epoch loop.
+    orthonormal but for round-off. Compiled: :func:`orthonormalize`. Otherwise, with
+    ``E = C^T C - I``: ``C`` itself when ``|E| < 1e-15``; one Newton-Schulz step
+    ``C (I - E / 2)`` when ``|E|`` is within :data:`NEWTON_SCHULZ_MAX` (the step squares
+    the departure, ``3/4 |E|^2``, to round-off); else the SVD.
     """
+    if kernels.COMPILED:
+        return orthonormalize(C)
     E = C.T @ C - _I3
     err = np.abs(E).max()
     if err < 1e-15:

@@ -167,29 +167,61 @@ def _rodrigues(x, y, z, R):
 
 
 @jit
-def _reorthonormalise(C, T):
-    """Make the nearly orthonormal ``C`` (3, 3) orthonormal in place; ``T`` (3, 3) scratch.
+def _newton_schulz(C, T, steps):
+    """Take ``C`` (3, 3) toward its polar factor in place; return its last departure.
 
-    Newton-Schulz steps toward the polar factor, ``C <- C (3 I - C^T C) / 2``: each squares
-    the departure from orthonormality, so the 1e-13 that 1000 products of rotations gather
-    is gone to round-off in two; the same matrix as the SVD's ``U V^T`` to 1e-16. Not the
-    SVD because LAPACK inside compiled code makes numba import ``scipy.linalg`` (0.15 s of
-    a replay's start).
+    At most ``steps`` Newton-Schulz steps ``C <- C (3 I - C^T C) / 2`` (``T`` (3, 3)
+    scratch), stopping once the departure ``max |C^T C - I|`` is below 1e-15. Each step
+    squares the departure (``3/4 |E|^2``), so the 1e-13 that 1000 products of rotations
+    gather is gone to round-off in two; the same matrix as the SVD's ``U V^T`` to 1e-16.
+    Not the SVD because LAPACK inside compiled code makes numba import ``scipy.linalg``
+    (0.15 s of a replay's start). Returns the departure measured before the last step
+    taken (below 1e-15: converged).
     """
-    for _ in range(4):
+    err = 0.0
+    for k in range(steps + 1):
         err = 0.0
         for i in range(3):
             for j in range(3):
                 d = C[0, i] * C[0, j] + C[1, i] * C[1, j] + C[2, i] * C[2, j]
                 err = max(err, abs(d - 1.0) if i == j else abs(d))
                 T[i, j] = 0.5 * ((3.0 if i == j else 0.0) - d)
-        if err < 1e-15:
-            return
+        if err < 1e-15 or k == steps:
+            return err
         for i in range(3):
             a, b, c = C[i, 0], C[i, 1], C[i, 2]
             C[i, 0] = a * T[0, 0] + b * T[1, 0] + c * T[2, 0]
             C[i, 1] = a * T[0, 1] + b * T[1, 1] + c * T[2, 1]
             C[i, 2] = a * T[0, 2] + b * T[1, 2] + c * T[2, 2]
+    return err
+
+
+#: departure ``max |C^T C - I|`` up to which :func:`polar_factor` iterates (singular
+#: values within about 0.7-1.2: seven steps at most); further, the SVD
+POLAR_MAX_DEPARTURE = 0.5
+
+
+@jit(sig='b1(f8[:, :], f8[:, :])')
+def polar_factor(C, out):
+    """Write the polar factor of ``C`` (3, 3), the nearest orthonormal matrix, into ``out``.
+
+    Newton-Schulz steps (:func:`_newton_schulz`) from a matrix within
+    :data:`POLAR_MAX_DEPARTURE` of orthonormal: a filter's attitude after feedback, or
+    the mean attitude over an interval. False (``out`` not usable) when ``C`` is further
+    or the steps do not reach round-off: the caller takes the SVD.
+    """
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = C[i, j]
+    T = np.empty((3, 3))
+    err = 0.0
+    for i in range(3):
+        for j in range(3):
+            d = C[0, i] * C[0, j] + C[1, i] * C[1, j] + C[2, i] * C[2, j]
+            err = max(err, abs(d - 1.0) if i == j else abs(d))
+    if not err < POLAR_MAX_DEPARTURE:
+        return False
+    return _newton_schulz(out, T, 12) < 1e-15
 
 
 @jit(sig='UniTuple(f8, 6)(f8, f8, b1, f8[:])')
@@ -320,7 +352,7 @@ def strapdown_run(C, v, v_prev, pos, pos_prev, dth_prev, dv_prev, steps, dtheta,
                 C[i, j] = T[i, 0] * Pm[0, j] + T[i, 1] * Pm[1, j] + T[i, 2] * Pm[2, j]
         steps += 1
         if steps % 1000 == 0:
-            _reorthonormalise(C, T)
+            _newton_schulz(C, T, 4)
         v_prev[0], v_prev[1], v_prev[2] = v0, v1, v2
         v[0], v[1], v[2] = n0, n1, n2
         dth_prev[0], dth_prev[1], dth_prev[2] = ax, ay, az
@@ -399,6 +431,7 @@ def warm_up():
     z3 = np.zeros(3)
     interval_sums(0.0, z3, z3.copy(), np.zeros((3, 3)), True, z, z, np.empty((2, 3, 3)),
                   np.full(2, 0.01))
+    polar_factor(np.eye(3), np.empty((3, 3)))
     for first_calls in _WARM_UPS:
         first_calls()
     return time.perf_counter() - t0
