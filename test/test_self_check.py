@@ -233,3 +233,26 @@ def test_a_seaway_is_not_taken_for_gnss_velocity_noise(vel_sigma, widened):
     c = check((b.imu.t, b.imu.dtheta, b.imu.dv, dts), POS, cfg, at_rest=False, gnss=buf)
     assert ('gnss_vel_sigma_mps' in c.widened) == widened
     assert c.figures['gnss_vel_noise_mps'] == pytest.approx(vel_sigma, rel=0.4)
+
+
+def test_the_lever_arm_grid_scores_equal_the_fit_at_each_heading():
+    """The vectorised heading grid of the lever-arm fit (``arm_check._grid_scores``, in
+    chunks) scores every heading as the one-by-one clipped fit does, to round-off, with
+    outliers among the velocities."""
+    from sins_align_ros.align import arm_check as ac
+    rng = np.random.default_rng(7)
+    n = 40
+    U_l = np.cumsum(rng.normal(size=(n, 3)), axis=0)
+    B0 = rng.normal(size=(n, 3, 3))
+    V = U_l @ np.diag([0.8, -1.1, 1.0]) + rng.normal(scale=0.05, size=(n, 3))
+    V[[5, 17]] += 3.0                                    # GNSS outliers
+    grid = np.radians(np.arange(0.0, 360.0, 7.0))
+    exact = []
+    for psi in grid:
+        R3 = np.eye(3)
+        R3[:2, :2] = ac._rotation(psi)
+        e, B = V - U_l @ R3, np.einsum('nak,ab->nbk', B0, R3)
+        exact.append(ac._clipped_fit(*ac._design(e, B))[1])
+    for rows in (100_000, 500):                          # one chunk, several chunks
+        np.testing.assert_allclose(ac._grid_scores(V, U_l, B0, grid, rows=rows), exact,
+                                   rtol=1e-10)

@@ -40,6 +40,9 @@ MIN_FIXES = 20
 GRID_DEG = 1.0
 #: rows beyond this many sigma (and their neighbours) are left out of the refit
 OUTLIER_SIGMAS = 4.0
+#: relative margin above the best vectorised grid score within which headings are fitted
+#: again one by one (:func:`_grid_scores` agrees with the one-by-one fit to round-off)
+_PRESELECT_TOL = 1e-6
 #: weight of the vertical rows: a receiver's vertical velocity noise taken as twice the
 #: horizontal
 UP_WEIGHT = 0.5
@@ -104,6 +107,40 @@ def _clipped_fit(d, D):
     return sol, float(np.sum(np.minimum(r * r, c * c)))
 
 
+def _grid_scores(V, U_l, B0, grid, rows=100_000):
+    """Clipped sums of squares (G,) of the fit at each heading of ``grid`` (G,), vectorised.
+
+    The same fit as ``_clipped_fit(*_design(*rotated(psi)))`` of :func:`fit_lever_arm`
+    (``V``, ``U_l`` (N, 3), ``B0`` (N, 3, 3)), equal to round-off: the second differences
+    are taken before the rotation (both linear), and ``l`` solves the least squares by a
+    QR factorisation per heading. At most ``rows`` residuals are held at a time.
+    """
+    w = np.array([1.0, 1.0, UP_WEIGHT])
+    dV = np.diff(V, n=2, axis=0).T                         # (3, M): axis a, epoch
+    dU = np.diff(U_l, n=2, axis=0).T
+    dB = np.diff(B0, n=2, axis=0).transpose(1, 0, 2)       # (3, M, 3): axis a, epoch, k
+    out = np.empty(len(grid))
+    step = max(1, rows // (3 * dV.shape[1]))
+    for g0 in range(0, len(grid), step):
+        c = np.cos(grid[g0:g0 + step])[:, None]                     # (G, 1)
+        s = np.sin(grid[g0:g0 + step])[:, None]
+        # e = V - U_l R3 and D = R3^T B0 per heading (R3: _rotation in the E-N block)
+        d = np.stack(np.broadcast_arrays(dV[0] - (dU[0] * c - dU[1] * s),
+                                         dV[1] - (dU[0] * s + dU[1] * c),
+                                         dV[2] - dU[2] + 0.0 * c), axis=1)  # (G, 3, M)
+        c, s = c[..., None], s[..., None]
+        D = np.stack(np.broadcast_arrays(dB[0] * c - dB[1] * s, dB[0] * s + dB[1] * c,
+                                         dB[2] + 0.0 * c), axis=1)         # (G, 3, M, 3)
+        d = (d * w[:, None]).reshape(len(c), -1)                    # (G, 3M)
+        D = (D * w[:, None, None]).reshape(len(c), -1, 3)           # (G, 3M, 3)
+        Qf, Rf = np.linalg.qr(D)
+        sol = np.linalg.solve(Rf, np.einsum('gri,gr->gi', Qf, d)[..., None])
+        r = d - (D @ sol)[..., 0]
+        clip = OUTLIER_SIGMAS * np.median(np.abs(r), axis=1) / 0.6745
+        out[g0:g0 + step] = np.sum(np.minimum(r * r, (clip * clip)[:, None]), axis=1)
+    return out
+
+
 def _difference_covariance(n):
     """Covariance (n, n) of ``n`` second differences of unit white noise."""
     S = 6.0 * np.eye(n)
@@ -150,14 +187,24 @@ def fit_lever_arm(t_v, V, window, arm_b):
     if np.linalg.matrix_rank(_design(*rotated(0.0))[1]) < 3:
         return None
     grid = np.radians(np.arange(0.0, 360.0, GRID_DEG))
-    fits = [_clipped_fit(*_design(*rotated(psi))) for psi in grid]
-    k = int(np.argmin([f[1] for f in fits]))
+    fits = {}
+
+    def fit(i):                     # heading i's clipped fit, as the grid's selection has it
+        if i not in fits:
+            fits[i] = _clipped_fit(*_design(*rotated(grid[i])))
+        return fits[i]
+
+    scores = _grid_scores(V, U_l, B0, grid)
+    # the vectorised scores only preselect: headings within round-off of the best are
+    # scored again one by one, so the choice is exactly the one-by-one fit's
+    near = np.flatnonzero(scores <= scores.min() * (1.0 + _PRESELECT_TOL))
+    k = int(near[np.argmin([fit(i)[1] for i in near])])
     k_opp = (k + len(grid) // 2) % len(grid)
-    ambiguous = fits[k_opp][1] < AMBIGUITY_RATIO * fits[k][1]
+    ambiguous = fit(k_opp)[1] < AMBIGUITY_RATIO * fit(k)[1]
     e, B = rotated(grid[k])
     d, D = _design(e, B)
     m = len(d) // 3
-    r = d - D @ fits[k][0]
+    r = d - D @ fit(k)[0]
     s = np.median(np.abs(r[:2 * m])) / 0.6745
     big = np.abs(r) > OUTLIER_SIGMAS * s
     big = big[:m] | big[m:2 * m] | big[2 * m:]
