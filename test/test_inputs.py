@@ -83,6 +83,25 @@ def test_gnss_rules():
     assert g.rejected == 9
 
 
+def test_gnss_variance_and_speed_checks_at_their_edges():
+    """The scalar checks of the reported variances and the speed: non-finite, zero and
+    negative variances are implausible, a finite velocity whose square overflows is out of
+    range (not a non-finite value), and 500 m/s itself is in range."""
+    from sins_align_ros.align.gnss_input import reported_variances
+    for bad in ((np.nan, 1.0), (1.0, np.inf), (-np.inf, 1.0), (0.0, 1.0), (1.0, -2.0), (1.0,)):
+        assert reported_variances(bad) is None
+    np.testing.assert_array_equal(reported_variances([0.5, 2.0, 9.0]), [0.5, 2.0])
+    assert reported_variances((1e-6, 1.0), lo=1e-6) is None
+    g = GnssInput()
+    assert g.velocity(1.0, (1e200, 0.0, 0.0)) is False
+    assert g.velocity(2.0, (np.nan, 0.0, 0.0)) is False
+    assert g.velocity(3.0, (300.0, 400.0, 0.0)) is None
+    assert g.velocity(4.0, (0.0, 0.0, 0.0), (np.nan, 0.0)) is None      # implausible: config
+    assert g.fix(1.0, 0, 30.0, np.inf, 0.0) is False
+    assert dict(g.counts) == {'out_of_range': 1, 'nan': 2, 'accepted_vel': 2,
+                              'covariance_implausible': 1}
+
+
 def _ship_stream(seconds=300.0, seed=1):
     sc = scenario('seed000_case1', duration=seconds)
     return MessageStream(ScenarioStream(sc, seed=seed, imu_rate_hz=50.0).next_block(

@@ -28,6 +28,7 @@ Position jumps and outliers of an otherwise valid fix are the filter's to judge
 (the innovation gate of the moving-base filters; the median of the recent fixes
 for the stationary models).
 """
+import math
 from collections import Counter, deque
 
 import numpy as np
@@ -47,8 +48,19 @@ def reported_variances(var, lo=0.0):
     """East/north variances (2,) as reported, or None unless both are finite and > ``lo``."""
     if var is None:
         return None
-    v = np.asarray(var, dtype=float)[:2]
-    return v if len(v) == 2 and np.all(np.isfinite(v)) and np.all(v > lo) else None
+    return _plausible(np.asarray(var, dtype=float)[:2], lo)
+
+
+def _plausible(v, lo):
+    """Return ``v`` (the first two reported variances) if both are finite and > ``lo``, else None.
+
+    Two floats compared in Python (a message's check, thousands of times in a replay):
+    ``lo < x < inf`` is false for NaN and infinities, as the finiteness test is.
+    """
+    if len(v) != 2:
+        return None
+    a, b = v.tolist()
+    return v if lo < a < math.inf and lo < b < math.inf else None
 
 
 class GnssInput:
@@ -87,14 +99,15 @@ class GnssInput:
     def _variances(self, kind, var, rng):
         if var is None:
             return None
-        if kind == 'vel' and not np.any(np.asarray(var, dtype=float)[:2]):
+        v = np.asarray(var, dtype=float)[:2]
+        if kind == 'vel' and not any(v.tolist()):
             return None               # TwistWithCovariance has no type: all zero is unknown
-        v = reported_variances(var, lo=rng[0])
+        v = _plausible(v, rng[0])
         if v is None:
             self._note('covariance_implausible', f'gnss {kind} covariance {list(var)[:2]} is '
                                                  'not plausible: configured sigma used')
             return None
-        if np.any(v > rng[1]):
+        if max(v.tolist()) > rng[1]:
             self._note('covariance_too_large', f'gnss {kind} reported sigma '
                                                f'{np.sqrt(v.max()):.3g} is too large: skipped')
             return False
@@ -108,7 +121,8 @@ class GnssInput:
             else:
                 self._note('status_unknown', f'gnss/fix status {status} (unknown): skipped')
             return False
-        if not np.all(np.isfinite([t, lat_deg, lon_deg, h])):
+        if not (math.isfinite(t) and math.isfinite(lat_deg) and math.isfinite(lon_deg)
+                and math.isfinite(h)):
             self._note('nan', 'non-finite value in gnss/fix: skipped')
             return False
         if abs(lat_deg) > 90.0 or abs(lon_deg) > 180.0 or not -1e3 <= h <= 1e5:
@@ -119,12 +133,14 @@ class GnssInput:
 
     def velocity(self, t, v_n, vel_var=None):
         """Check an ENU velocity; returns ``vel_var`` to use (None: configured), or False."""
-        v_n = np.asarray(v_n, dtype=float)
-        if not (np.isfinite(t) and np.all(np.isfinite(v_n))):
+        v_n = np.asarray(v_n, dtype=float).ravel()
+        speed_sq = float(v_n @ v_n)         # not finite: a component is not, or it overflowed
+        if not (math.isfinite(t) and (math.isfinite(speed_sq)
+                                      or all(map(math.isfinite, v_n.tolist())))):
             self._note('nan', 'non-finite value in gnss/vel: skipped')
             return False
-        if np.linalg.norm(v_n) > 500.0:
-            self._note('out_of_range', f'gnss/vel speed {np.linalg.norm(v_n):.4g} m/s is out '
+        if math.sqrt(speed_sq) > 500.0:     # np.linalg.norm's arithmetic
+            self._note('out_of_range', f'gnss/vel speed {math.sqrt(speed_sq):.4g} m/s is out '
                                        'of range: skipped')
             return False
         return self._accept('vel', t, vel_var, VEL_VAR_RANGE)
