@@ -87,11 +87,11 @@ class ForceModel:
         sigma is the filter's own tilt and accelerometer-bias variances'. A dropped
         force's heading variance is kept for :meth:`_force_noise`.
         """
-        d = np.diag(self.kf.P)
-        k = np.arange(len(d))[self.i_phi]
-        var_bias = 0.0 if self.i_nab is None else float(np.max(d[self.i_nab]))
+        d = self.kf.P.diagonal()
+        var_phi = d[self.i_phi].tolist()
+        var_bias = 0.0 if self.i_nab is None else float(d[self.i_nab].max())
         f, self._unmodelled_acc_var = model_force(
-            f_n, max(d[k[0]], d[k[1]]), d[k[2]], var_bias, earth.gravity(lat, h))
+            f_n, max(var_phi[0], var_phi[1]), var_phi[2], var_bias, earth.gravity(lat, h))
         return f
 
     def _force_noise(self, T):

@@ -156,7 +156,7 @@ class SageHusa:
         if self.adapt_q:
             Ky = K @ y
             self.Q = (1.0 - d) * self.Q + d * np.outer(Ky, Ky)
-        if float(y @ y) <= np.trace(upd.Pzz):
+        if float(y @ y) <= upd.Pzz.trace():
             if self.gate:
                 return self.Q, self.R                                        # eq. 21
         else:
@@ -180,17 +180,18 @@ class SageHusa:
         (:meth:`update`); they are state uncertainty seen through the measurement, so
         they must not make a row look identifiable.
         """
-        pzz = np.diag(upd.Pzz)
-        hph = np.sum(upd.eta * upd.eta, axis=1)                    # diag(eta eta^T)
-        r = np.diag(self.R)[idx]
+        # array methods, not numpy's functions: a few rows, so their dispatch is the cost
+        hph = (upd.eta * upd.eta).sum(axis=1)                     # diag(eta eta^T)
+        r = self.R.diagonal()[idx]
         if lent is not None:
             hph = hph + np.asarray(lent, dtype=float)[idx]
         ok = hph <= r
-        if not np.any(ok) or np.sum(hph) > np.sum(r):
+        if not ok.any() or hph.sum() > r.sum():
             return self.R
-        y2 = np.minimum(upd.y ** 2, self.clip * pzz)
+        y2 = np.minimum(upd.y ** 2, self.clip * upd.Pzz.diagonal())
         r_new = (1.0 - d) * r + d * (y2 - hph)
         rows = idx[ok]
         self.R = self.R.copy()
-        self.R[rows, rows] = np.clip(r_new[ok], self._r_lo[rows], self._r_hi[rows])
+        self.R[rows, rows] = np.minimum(np.maximum(r_new[ok], self._r_lo[rows]),
+                                        self._r_hi[rows])
         return self.R

@@ -111,12 +111,13 @@ def sqrt_psd(A):
     negative round-off eigenvalues clipped to zero. Only ``L L^T`` matters where
     it is used (inside ``Tria``), so it need not be triangular.
     """
-    A = 0.5 * (A + A.T)
-    d = np.diagonal(A)
+    A = np.asarray(A, dtype=float)
+    d = A.diagonal()
     if np.count_nonzero(A) == np.count_nonzero(d):
         # diagonal (the usual Q and R): its root directly; Cholesky's where definite, and
         # no failed factorisation and eigen-decomposition where a state has no noise
-        return np.diag(np.sqrt(np.clip(d, 0.0, None)))
+        return np.diag(np.sqrt(np.maximum(d, 0.0)))
+    A = 0.5 * (A + A.T)
     try:
         return np.linalg.cholesky(A)
     except np.linalg.LinAlgError:

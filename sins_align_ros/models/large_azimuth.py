@@ -43,6 +43,8 @@ base a bias is indistinguishable from a tilt of bias / g, but once the vehicle t
 the bias turns with it in the navigation frame while a tilt does not, and the 10-state
 filter takes the difference for heading (bench/results/moving_base_integrity.md).
 """
+import math
+
 import numpy as np
 
 from ..nav import earth, kernels
@@ -56,8 +58,8 @@ LABELS = ('dVE', 'dVN', 'dpE', 'dpN', 'phiE', 'phiN', 'phiU', 'epsE', 'epsN', 'e
 
 def C_n_nprime(phi):
     """``C_n^n'`` of seed 000 eq. 2 in the package convention (see module docstring)."""
-    pe, pn, pu = phi
-    c, s = np.cos(pu), np.sin(pu)
+    pe, pn, pu = map(float, phi)
+    c, s = math.cos(pu), math.sin(pu)
     return np.array([[c, s, -pn],
                      [-s, c, pe],
                      [pn * c + pe * s, pn * s - pe * c, 1.0]])
@@ -265,7 +267,7 @@ def reset_jacobian(phi_hat):
     recursion of the same F, Q, H and R without the mixing gave 19 deg; the heading
     ended 28 deg off).
     """
-    c, s = np.cos(phi_hat[2]), np.sin(phi_hat[2])
+    c, s = math.cos(phi_hat[2]), math.sin(phi_hat[2])
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
