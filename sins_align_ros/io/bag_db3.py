@@ -51,23 +51,34 @@ def db3_file(path):
     return files[0]
 
 
-def _query(con, ids):
-    """``(timestamps, rowids, blobs)`` of the topics ``ids`` in recording order.
+def _query(con, groups):
+    """``(timestamps, rowids, blobs)`` of each group of topic ids, in recording order.
 
-    Fetched in storage order and sorted here by ``(timestamp, id)`` when they are not
-    already in that order (an index scan costs as much as the sort it saves).
+    One scan of the table for all the groups (each scan reads every message's pages:
+    a 1200-s recording's GNSS topics cost 23 ms a query for 1200 rows), split here by
+    topic; each group is sorted by ``(timestamp, id)`` when it is not already in that
+    order (an index scan costs as much as the sort it saves).
     """
-    rows = con.execute(f'SELECT timestamp, id, data FROM messages WHERE topic_id IN '
-                       f'({",".join("?" * len(ids))})', tuple(ids)).fetchall() if ids else []
+    ids = sorted({i for g in groups for i in g})
+    rows = con.execute(f'SELECT topic_id, timestamp, id, data FROM messages WHERE topic_id '
+                       f'IN ({",".join("?" * len(ids))})', tuple(ids)).fetchall() if ids else []
     n = len(rows)
-    stamp = np.fromiter(map(itemgetter(0), rows), np.int64, n)
-    rowid = np.fromiter(map(itemgetter(1), rows), np.int64, n)
-    blobs = list(map(itemgetter(2), rows))
-    d_stamp = np.diff(stamp)
-    if not ((d_stamp > 0) | ((d_stamp == 0) & (np.diff(rowid) > 0))).all():
-        order = np.lexsort((rowid, stamp))
-        stamp, rowid, blobs = stamp[order], rowid[order], [blobs[k] for k in order]
-    return stamp, rowid, blobs
+    topic = np.fromiter(map(itemgetter(0), rows), np.int64, n)
+    stamp_all = np.fromiter(map(itemgetter(1), rows), np.int64, n)
+    rowid_all = np.fromiter(map(itemgetter(2), rows), np.int64, n)
+    blobs_all = list(map(itemgetter(3), rows))
+    del rows
+    parts = []
+    for g in groups:
+        k = np.flatnonzero(np.isin(topic, list(g))) if len(ids) > len(g) else np.arange(n)
+        stamp, rowid = stamp_all[k], rowid_all[k]
+        blobs = blobs_all if len(k) == n else [blobs_all[i] for i in k.tolist()]
+        d_stamp = np.diff(stamp)
+        if not ((d_stamp > 0) | ((d_stamp == 0) & (np.diff(rowid) > 0))).all():
+            order = np.lexsort((rowid, stamp))
+            stamp, rowid, blobs = stamp[order], rowid[order], [blobs[k] for k in order]
+        parts.append((stamp, rowid, blobs))
+    return parts
 
 
 def read_db3(db, select):
@@ -93,7 +104,7 @@ def read_db3(db, select):
         if any(fmt != 'cdr' for _, _, _, fmt in rows):
             return None
         imu, fix, truth, vel = select([Topic(i, name, ty) for i, name, ty, _ in rows])
-        parts = [_query(con, [c.id for c in cs]) for cs in (imu, fix, vel, truth)]
+        parts = _query(con, [[c.id for c in cs] for cs in (imu, fix, vel, truth)])
     except sqlite3.Error:
         return None
     finally:
