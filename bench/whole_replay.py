@@ -73,10 +73,16 @@ def process_env(root, **extra):
     module again, 0.1-0.15 s of a replay. The bench measures the usual installation, so
     it clears that variable for the processes it times; the warm-up run fills the cache.
     """
-    env = dict(os.environ, PYTHONPATH=str(root), OPENBLAS_NUM_THREADS='1',
+    env = dict(os.environ, PYTHONPATH=str(root),
                PYTHONPYCACHEPREFIX=str(Path(tempfile.gettempdir()) / 'sins_align_pycache'),
                **extra)
     env.pop('PYTHONDONTWRITEBYTECODE', None)
+    # the BLAS thread settings a user has by default: none (the replay limits the pool
+    # itself since session 29, ``sins_align_ros.single_thread_blas``; before, numpy's
+    # OpenBLAS started a thread per core at import, 55 ms on 2 cores)
+    for var in ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS', 'MKL_NUM_THREADS'):
+        if var not in extra:
+            env.pop(var, None)
     return env
 
 

@@ -1,11 +1,9 @@
 """ROS 2 layer: rclpy nodes and message conversion only.
 
-The nodes do small-matrix numerics at IMU rate; a multi-threaded BLAS only adds
-threads that spin between calls (measured: a whole core at 200 Hz), so its
-thread pools are limited to one thread unless the user chose otherwise. This
-must run before numpy is imported, hence here.
+The nodes do small-matrix numerics at IMU rate: the BLAS thread pools are limited to
+one thread unless the user chose otherwise (:func:`sins_align_ros.single_thread_blas`);
+this must run before numpy is imported, hence here.
 """
-import os
+from .. import single_thread_blas
 
-for _var in ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS', 'MKL_NUM_THREADS'):
-    os.environ.setdefault(_var, '1')
+single_thread_blas()
