@@ -248,6 +248,26 @@ def test_push_run_leaves_the_checker_as_push_does_sample_by_sample():
             assert np.array_equal(g[1], o[1]) and np.array_equal(g[2], o[2])
 
 
+def test_push_run_stops_at_a_non_finite_stamp_or_value_without_a_gap_limit():
+    """With no gap limit an infinite interval is no gap: the run still ends where push
+    would skip a sample (an infinite stamp, an infinite rate)."""
+    for bad in ('t', 'w'):
+        conv = ImuInput(max_gap=np.inf)
+        t = 0.01 * np.arange(2 * RATE_WINDOW + 10)
+        w, f = np.zeros((len(t), 3)), np.tile([0.0, 0.0, 9.8], (len(t), 1))
+        for k in range(RATE_WINDOW + 1):               # the clock and the nominal rate
+            conv.push(t[k], w[k], f[k])
+        k0 = RATE_WINDOW + 1
+        if bad == 't':
+            t[-1] = np.inf
+        else:
+            w[-3, 1] = np.inf
+        n, _, _ = conv.push_run(t[k0:], w[k0:], f[k0:])
+        k_bad = len(t) - (1 if bad == 't' else 3)
+        assert n == k_bad - k0
+        assert conv.push(t[k_bad], w[k_bad], f[k_bad])[0] == SKIP
+
+
 def test_imu_block_gives_the_rows_and_counts_of_imu_sample_by_sample():
     """The replay's block path against the node's one-sample path, faults included."""
     from sins_align_ros.align.output import Output

@@ -184,19 +184,30 @@ class ImuInput:
         w_b = np.asarray(w_b, dtype=float)
         f_b = np.asarray(f_b, dtype=float)
         dt = intervals(t, self.t_last)
-        # (a NaN or infinite component fails its range test: no separate finiteness test)
-        plain = (np.isfinite(t)
-                 & (np.abs(w_b).max(axis=1) < 0.999 * self.gyro_range)
-                 & (np.abs(f_b).max(axis=1) < 0.999 * self.accel_range)
-                 & (dt > 0.0) & (dt <= self.max_gap))
-        n = len(t) if plain.all() else int(np.argmin(plain))
-        k = 0
+        # (a NaN or infinite component fails its range test: no separate finiteness test;
+        # the stamps are finite where every interval is, from a finite t_last)
+        g_max, a_max = 0.999 * self.gyro_range, 0.999 * self.accel_range
+        dt_max = dt.max()
+        if (np.abs(w_b).max() < g_max and np.abs(f_b).max() < a_max
+                and dt.min() > 0.0 and dt_max <= self.max_gap and dt_max < math.inf):
+            n = len(t)                     # the usual block: every sample plain
+        else:
+            dt_max = math.inf
+            plain = (np.isfinite(t) & (np.abs(w_b).max(axis=1) < g_max)
+                     & (np.abs(f_b).max(axis=1) < a_max) & (dt > 0.0) & (dt <= self.max_gap))
+            n = len(t) if plain.all() else int(np.argmin(plain))
+        dts = dt[:n].tolist()
+        k, bridge, nominal = 0, n, None
         while k < n:               # one stretch per rate window: the bridge test's nominal
+            if self.dt_nominal != nominal:          # the first bridge under this nominal
+                nominal = self.dt_nominal
+                bridges = (() if dt_max <= 1.5 * nominal       # (dt_max: of dt[:n], or inf)
+                           else np.flatnonzero(dt[k:n] > 1.5 * nominal))
+                bridge = k + int(bridges[0]) if len(bridges) else n
             end = min(n, k + RATE_WINDOW - self.counts['accepted'] % RATE_WINDOW)
-            bridges = np.flatnonzero(dt[k:end] > 1.5 * self.dt_nominal)
-            stop = k + int(bridges[0]) if len(bridges) else end
+            stop = min(bridge, end)
             self.counts['accepted'] += stop - k
-            self._dts.extend(dt[k:stop].tolist())
+            self._dts.extend(dts[k:stop])
             k = stop
             if stop < end:
                 break

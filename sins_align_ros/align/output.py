@@ -54,12 +54,20 @@ class Output:
 
     @staticmethod
     def empty():
-        """Return an output with no rows."""
-        return Output(np.zeros(0), np.zeros((0, 4)), np.zeros((0, 3)), np.zeros((0, 3)),
-                      np.zeros((0, 3, 3)), np.zeros(0, dtype=object))
+        """Return an output with no rows.
+
+        Its arrays are shared by every empty output (most calls return one): arrays of
+        no elements, which nothing can write into.
+        """
+        return Output(*_EMPTY)
 
     def __len__(self):
         return len(self.t)
+
+
+#: the arrays of :meth:`Output.empty` (t, q, euler, sigma, P_phi, phase)
+_EMPTY = (np.zeros(0), np.zeros((0, 4)), np.zeros((0, 3)), np.zeros((0, 3)),
+          np.zeros((0, 3, 3)), np.zeros(0, dtype=object))
 
 
 class Rows:

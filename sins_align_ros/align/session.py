@@ -97,6 +97,8 @@ class AlignmentSession:
 
     def notices(self):
         """Return and clear the input notices as ``(source, key, text)``, source imu or gnss."""
+        if not (self.imu_input.notices or self.gnss_input.notices):
+            return []                     # the usual call: nothing new
         return ([('imu', k, s) for k, s in self.imu_input.pop_notices()]
                 + [('gnss', k, s) for k, s in self.gnss_input.pop_notices()])
 
@@ -130,11 +132,13 @@ class AlignmentSession:
         goes through :meth:`imu`. Returns the rows produced.
         """
         n = len(t)
-        holes = np.flatnonzero(missing) if missing is not None else np.zeros(0, dtype=int)
-        outs, k = [], 0
+        missing = np.zeros(0, bool) if missing is None else np.asarray(missing, dtype=bool)
+        holes = np.flatnonzero(missing).tolist() if missing.any() else []
+        outs, k, h = [], 0, 0
         while k < n:
-            h = int(np.searchsorted(holes, k))
-            end = int(holes[h]) if h < len(holes) else n
+            while h < len(holes) and holes[h] < k:
+                h += 1
+            end = holes[h] if h < len(holes) else n
             if end == k:
                 outs.append(self.reject_missing_field())
                 k += 1
