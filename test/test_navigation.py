@@ -442,3 +442,49 @@ def test_seed003_car_ukf_position_within_the_paper_at_imu_rate():
 def test_continue_navigation_off_gives_no_navigation_rows():
     p, out, b = _pipeline_run('seed003_car', 'kf', 150.0, continue_navigation=False)
     assert out.nav is None and p.nav_cov().shape == (9, 9)
+
+
+def test_the_interval_full_search_agrees_with_the_running_sum():
+    """The samples after which a prediction runs (GnssAidedEngine._interval_full): the
+    shortcut for an interval far from full and the running sum agree, at the 2-s edge,
+    with a zero and a negative interval."""
+    from sins_align_ros.align.aided import MAX_PREDICT
+    P0, Qc = model_noise(15, [1e-3] * 3, 0.1, 1.0, (DPH, 0.0), (100 * UG, 0.0), 0.0, 0.0,
+                         100.0, 1000.0)
+    eng = IntegratedNavigation(np.eye(3), np.zeros(3), LAT, 0.0, 0.0, P0, Qc, np.eye(6),
+                               method='kf')
+    rng = np.random.default_rng(5)
+    cases = [(0.0, np.full(100, 0.01)), (1.0, np.full(100, 0.01)), (1.0, np.full(99, 0.01)),
+             (1.9999999999, np.full(3, 1e-11)), (0.5, rng.uniform(0.0, 0.02, 4096)),
+             (0.0, np.r_[np.full(150, 0.01), 0.0, -0.5, np.full(100, 0.01)]),
+             (-1.0, np.full(250, 0.01)), (2.5, np.full(5, 0.01))]
+    seen = set()
+    for T, w in cases:
+        eng.sums.T = T
+        want = np.flatnonzero(np.cumsum(np.concatenate(([T], w)))[1:] >= MAX_PREDICT)
+        got = eng._interval_full(w)
+        assert list(got) == list(want), (T, len(w))
+        seen.add(len(want) > 0)
+    assert seen == {True, False}
+
+
+def test_the_kf_gate_and_the_engine_read_the_same_nis():
+    """A KF epoch's NIS is computed once (linear_kf.KFInnovation): the gate rejects an epoch
+    whose NIS is above its threshold, accepts it at the threshold, and the engine reports
+    that NIS."""
+    rng = np.random.default_rng(2)
+    A = rng.standard_normal((6, 6))
+    P0 = A @ A.T + np.eye(6)
+    results = []
+    for margin in (-1e-9, 0.0):
+        f = KF(np.zeros(6), P0, 0.01 * np.eye(6), np.eye(3))
+        z = np.array([3.0, -2.0, 1.0])
+        hx = batched(lambda X: X[[0, 2, 4]])
+        fx = linear(np.eye(6))
+        probe = KF(np.zeros(6), P0, 0.01 * np.eye(6), np.eye(3))
+        upd = probe.step(fx, z, hx)
+        threshold = lkf.nis(upd.y, upd.Pzz) + margin
+        upd = f.step(fx, z, hx, max_nis=threshold)
+        assert upd.nis() == lkf.nis(upd.y, upd.Pzz)
+        results.append(f.rejected)
+    assert results == [True, False]

@@ -28,6 +28,7 @@ import numpy as np
 
 from ..filters.cubature import batched
 from ..filters.kf import nis
+from ..filters.linear_kf import KFInnovation
 from ..nav import kernels
 from ..nav.mechanization import MechanizationOptions, Strapdown
 from ..units import DPH, UG
@@ -359,8 +360,7 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
         i = 0
         while i < n:
             w = dt[i:i + STRETCH]
-            over = np.flatnonzero(np.cumsum(np.concatenate(([self.sums.T], w)))[1:]
-                                  >= MAX_PREDICT)
+            over = self._interval_full(w)
             j = i + (int(over[0]) + 1 if len(over) else len(w))
             dth, dvc = self._correct_imu(dtheta[i:j], dv[i:j], dt[i:j, None])
             out = self.mech.run(dth, dvc, dt[i:j], as_step=True)
@@ -375,6 +375,19 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
                 predicted.append(j - 1)
             i = j
         return Block(C, nav, predicted, n)
+
+    def _interval_full(self, w):
+        """Return the samples of intervals ``w`` (N,) after which the interval is full (indices).
+
+        Those where ``T`` summed sample by sample (as :class:`IntervalSums` sums it)
+        reaches :data:`MAX_PREDICT`. Between GNSS epochs it never does, which the sum of
+        ``w`` tells without the running sum: non-negative intervals, their sum short of
+        MAX_PREDICT by far more than any summation order's round-off (N u of it).
+        """
+        T = self.sums.T
+        if T >= 0.0 and T + w.sum() < MAX_PREDICT * (1.0 - 1e-9) and w.min() >= 0.0:
+            return ()
+        return np.flatnonzero(np.cumsum(np.concatenate(([T], w)))[1:] >= MAX_PREDICT)
 
     def predict(self, without_gnss=True):
         """Predict over the interval so far without a GNSS measurement.
@@ -462,13 +475,14 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
             self._return_process_noise(lent)
             if arm is not None:
                 self._return_arm_noise()
-            self.last_nis = nis(upd.y, upd.Pzz)
+            # (a linear KF's innovation has computed its NIS for the gate already)
+            self.last_nis = upd.nis() if isinstance(upd, KFInnovation) else nis(upd.y, upd.Pzz)
             self.last_dof = len(upd.y)
-            self.last_u = upd.y / np.sqrt(np.diag(upd.Pzz))
+            self.last_u = upd.y / np.sqrt(upd.Pzz.diagonal())
             self.last_rows = np.asarray(idx)
         except (np.linalg.LinAlgError, ValueError):
             upd = None
-        if upd is None or not (np.all(np.isfinite(kf.x)) and np.all(np.isfinite(kf.P))):
+        if upd is None or not (np.isfinite(kf.x).all() and np.isfinite(kf.P).all()):
             raise FilterDiverged(f'filter diverged at t={fix.t:.3f} s (non-finite or '
                                  f'singular covariance)')
         self._restart_interval()

@@ -27,6 +27,38 @@ from .cubature import batched
 from .kf import CLIP, nis
 
 
+class KFInnovation(PriorInnovation):
+    """:class:`~.base.PriorInnovation` of :class:`KF` that computes its NIS once.
+
+    :meth:`nis` is :func:`~.kf.nis` of ``y`` and ``Pzz``, kept after the first call: the
+    gate and the engine's diagnostics (``GnssAidedEngine.update``) both ask for it.
+    """
+
+    __slots__ = ('_nis',)
+
+    def __init__(self, y, Pzz):
+        super().__init__(y, Pzz)
+        self._nis = None
+
+    def nis(self):
+        """Normalised innovation squared ``y^T Pzz^-1 y`` (:func:`~.kf.nis`)."""
+        if self._nis is None:
+            self._nis = nis(self.y, self.Pzz)
+        return self._nis
+
+
+def _identity(n):
+    """Return the identity (n, n), shared and read-only (the Joseph form's ``I``, every epoch)."""
+    eye = _IDENTITY.get(n)
+    if eye is None:
+        eye = _IDENTITY[n] = np.eye(n)
+        eye.flags.writeable = False
+    return eye
+
+
+_IDENTITY = {}
+
+
 def rejected_noise(y, S, HPH):
     """Per-row R sample of a rejected epoch: ``y^2 - (H P H^T)_ii`` in ``[0, CLIP S_ii]``."""
     s = np.diag(S)
@@ -74,7 +106,7 @@ class KF(CovarianceFilter):
         R = self.R_prior()[idx][:, idx]                 # the rows and columns of idx
         y = z - H @ self.x
         S = H @ self.P @ H.T + R
-        self.last = PriorInnovation(y, S)
+        self.last = KFInnovation(y, S)
         return H, y, S, R
 
     def R_prior(self):
@@ -89,7 +121,7 @@ class KF(CovarianceFilter):
         """
         idx = measurement_rows(idx, len(self.R))
         H, y, S, R = self._prior(fx, z, hx, idx)
-        self.rejected = max_nis is not None and nis(y, S) > max_nis
+        self.rejected = max_nis is not None and self.last.nis() > max_nis
         if self.rejected:
             self._learn_rejected(y, S, H @ self.P @ H.T, idx)
         else:
@@ -103,6 +135,6 @@ class KF(CovarianceFilter):
         """Measurement update in Joseph form with the epoch's ``R`` (seed 001 eq. 3)."""
         K = np.linalg.solve(S, H @ self.P).T
         self.x = self.x + K @ y
-        I_KH = np.eye(len(self.x)) - K @ H
+        I_KH = _identity(len(self.x)) - K @ H
         P = I_KH @ self.P @ I_KH.T + K @ R @ K.T
         self.P = 0.5 * (P + P.T)
