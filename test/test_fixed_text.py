@@ -36,3 +36,26 @@ def test_the_text_is_pythons_to_the_byte():
 
 def test_an_empty_table_is_empty_text():
     assert fixed_text.format_table(np.empty((0, 2)), [3, 3], [], 1) == b''
+
+
+def _python_text(values, decimals, text, text_col):
+    fmt = [f'%.{d}f' for d in decimals]
+    fmt.insert(text_col, '%s')
+    return ''.join(','.join(fmt) % tuple([*row[:text_col], name, *row[text_col:]]) + '\r\n'
+                   for row, name in zip(values.tolist(), text)).encode()
+
+
+def test_pieces_across_kernel_chunks_and_a_file_give_the_same_text(monkeypatch, tmp_path):
+    """Formatted a few rows per kernel call (Python's rows inside and at chunk edges), the
+    pieces joined and written to a file are the whole table's text; the text column in
+    runs and as a list of str."""
+    values, decimals, text = _table(n=300)
+    text = np.repeat(['coarse', 'fine', 'aligned', 'fine'], [100, 50, 120, 30])
+    values[6, 0] = 2e15                        # Python's row at the end of a chunk of 7
+    want = _python_text(values, decimals, text, 2)
+    for rows in (7, 4096):
+        monkeypatch.setattr(fixed_text, 'CHUNK_ROWS', rows)
+        assert fixed_text.format_table(values, decimals, list(text), 2) == want
+        with open(tmp_path / 'x.csv', 'wb') as f:
+            fixed_text.write_table(f, values, decimals, text.astype(object), 2)
+        assert (tmp_path / 'x.csv').read_bytes() == want

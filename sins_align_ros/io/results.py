@@ -13,7 +13,7 @@ import csv
 import numpy as np
 
 from ..nav.frames import yaw_to_heading
-from .fixed_text import format_table
+from .fixed_text import write_table
 
 COLUMNS = ('t', 'qx', 'qy', 'qz', 'qw', 'roll_deg', 'pitch_deg', 'yaw_deg',
            'sigma_roll_deg', 'sigma_pitch_deg', 'sigma_yaw_deg', 'phase', 'heading_deg')
@@ -26,27 +26,32 @@ def write_csv(path, out, every=1):
     ``every`` keeps one row in ``every`` (the last row is always written).
     """
     n = len(out.t)
-    idx = np.arange(0, n, max(1, int(every)))
-    if n and idx[-1] != n - 1:
-        idx = np.append(idx, n - 1)
-    eul = np.degrees(out.euler[idx])
-    sig = np.degrees(out.sigma[idx])
-    head = np.degrees(yaw_to_heading(out.euler[idx, 2]))
-    nav = None
-    if out.nav is not None:
-        nav = out.nav[idx].copy()
-        nav[:, :2] = np.degrees(nav[:, :2])
-    cols = [out.t[idx], *out.q[idx].T, *eul.T, *sig.T, head]
+    step = max(1, int(every))
+    if step == 1:
+        rows = slice(None)                # every row: views, no gathered copies
+    else:
+        rows = np.arange(0, n, step)
+        if n and rows[-1] != n - 1:
+            rows = np.append(rows, n - 1)
+    euler = out.euler[rows]
+    names = COLUMNS + (NAV_COLUMNS if out.nav is not None else ())
+    # the table in place, column by column (t, q, Euler, sigmas, heading[, navigation])
+    values = np.empty((len(euler), len(names) - 1))
+    values[:, 0] = out.t[rows]
+    values[:, 1:5] = out.q[rows]
+    np.degrees(euler, out=values[:, 5:8])
+    np.degrees(out.sigma[rows], out=values[:, 8:11])
+    values[:, 11] = np.degrees(yaw_to_heading(euler[:, 2]))
     decimals = [9] + [12] * 4 + [9] * 7
-    if nav is not None:
-        cols += [nav[:, 0], nav[:, 1], *nav[:, 2:].T]
+    if out.nav is not None:
+        nav = out.nav[rows]
+        np.degrees(nav[:, :2], out=values[:, 12:14])
+        values[:, 14:] = nav[:, 2:]
         decimals += [10, 10] + [4] * 4
-    text = format_table(np.column_stack(cols), decimals, np.asarray(out.phase)[idx],
-                        text_col=COLUMNS.index('phase'))
     with open(path, 'wb') as f:
-        f.write((','.join(COLUMNS + (NAV_COLUMNS if nav is not None else ())) + '\r\n')
-                .encode('ascii'))
-        f.write(text)
+        f.write((','.join(names) + '\r\n').encode('ascii'))
+        write_table(f, values, decimals, np.asarray(out.phase)[rows],
+                    text_col=COLUMNS.index('phase'))
 
 
 def read_csv(path):
