@@ -30,7 +30,7 @@ from ..filters.cubature import batched
 from ..filters.kf import nis
 from ..filters.linear_kf import KFInnovation
 from ..nav import kernels
-from ..nav.mechanization import MechanizationOptions, Strapdown
+from ..nav.mechanization import MechanizationOptions, Strapdown, kernel_array
 from ..units import DPH, UG
 from .epoch_noise import EpochNoise
 from .force import ForceModel
@@ -148,7 +148,7 @@ class IntervalSums:
         self.T = kernels.interval_sums(
             self.T, self.dv_sum, self.v_sum, self.C_sum if self.attitude else _NO_C_SUM,
             self.attitude, out['dv_sf'], out['v_n'], out['C_b_n'],
-            np.require(dt, float, ['C', 'W']))
+            kernel_array(dt))
 
 
 @dataclass
@@ -385,7 +385,8 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
         MAX_PREDICT by far more than any summation order's round-off (N u of it).
         """
         T = self.sums.T
-        if T >= 0.0 and T + w.sum() < MAX_PREDICT * (1.0 - 1e-9) and w.min() >= 0.0:
+        if (T >= 0.0 and T + np.add.reduce(w) < MAX_PREDICT * (1.0 - 1e-9)
+                and np.minimum.reduce(w) >= 0.0):
             return ()
         return np.flatnonzero(np.cumsum(np.concatenate(([T], w)))[1:] >= MAX_PREDICT)
 

@@ -73,7 +73,7 @@ _EMPTY = (np.zeros(0), np.zeros((0, 4)), np.zeros((0, 3)), np.zeros((0, 3)),
 class Rows:
     """Fine-phase rows before conversion.
 
-    Attitudes (N, 3, 3), one covariance, and the navigation solution (N, 6) or None.
+    Attitudes (N, 3, 3), one covariance (3, 3), and the navigation solution (N, 6) or None.
     """
 
     __slots__ = ('t', 'C', 'P_phi', 'phase', 'nav')
@@ -146,8 +146,12 @@ def convert(parts):
             return
         t = np.concatenate([r.t for r in run])
         C = np.concatenate([r.C for r in run])
-        P = np.concatenate([np.broadcast_to(r.P_phi, (len(r.t), 3, 3)) for r in run])
-        ph = np.concatenate([np.full(len(r.t), r.phase, dtype=object) for r in run])
+        # each part's one covariance and phase repeated over its rows (thousands of parts)
+        lengths = [len(r.t) for r in run]
+        P = np.repeat(np.array([r.P_phi for r in run], dtype=float), lengths, axis=0)
+        phases = np.empty(len(run), dtype=object)
+        phases[:] = [r.phase for r in run]
+        ph = np.repeat(phases, lengths)
         eul = dcm_to_euler(C)
         sig = euler_sigma(eul, P)
         done.append(Output(t, dcm_to_quat(C), eul, sig, P, ph, concat_nav(run)))

@@ -48,7 +48,7 @@ class KFInnovation(PriorInnovation):
 
 
 def _identity(n):
-    """Return the identity (n, n), shared and read-only (the Joseph form's ``I``, every epoch)."""
+    """Return the identity (n, n), shared and read-only (``H = hx(I)`` and the Joseph form's)."""
     eye = _IDENTITY.get(n)
     if eye is None:
         eye = _IDENTITY[n] = np.eye(n)
@@ -102,7 +102,7 @@ class KF(CovarianceFilter):
         """Predict; return ``(H, y, S, R_sub)`` of the epoch under the current R."""
         self.predict(fx)
         self.P_nominal = self.P
-        H = measurement_matrix(hx, len(self.x))
+        H = np.asarray(hx(_identity(len(self.x))), dtype=float)       # measurement_matrix
         R = self.R_prior()[idx][:, idx]                 # the rows and columns of idx
         y = z - H @ self.x
         S = H @ self.P @ H.T + R

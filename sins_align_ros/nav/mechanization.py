@@ -303,13 +303,13 @@ class Strapdown:
         """
         # contiguous and writeable: numba compiles a separate version for read-only arrays
         # (a broadcast dt is one), which cost a live node a second at its first block
-        dtheta = _kernel_array(dtheta)
-        dv = _kernel_array(dv)
+        dtheta = kernel_array(dtheta)
+        dv = kernel_array(dv)
         n = len(dtheta)
         dt = np.asarray(dt, dtype=float)
         if dt.shape != (n,):              # one interval for every sample
             dt = np.broadcast_to(dt, (n,))
-        dt = _kernel_array(dt)
+        dt = kernel_array(dt)
         out = {'C_b_n': np.empty((n, 3, 3)), 'v_n': np.empty((n, 3)), 'pos': np.empty((n, 3)),
                'dv_sf': np.empty((n, 3))}
         if n == 0:
@@ -332,7 +332,7 @@ class Strapdown:
         return out
 
 
-def _kernel_array(a):
+def kernel_array(a):
     """Return ``a`` as a C-contiguous, writeable float64 array (a copy only when it is not one).
 
     ``np.require(a, float, ['C', 'W'])``'s result, without its cost (several
