@@ -92,7 +92,7 @@ def test_compiled_square_root_ckf_equals_its_numpy_reference(fading, monkeypatch
     pairs = [*zip(ref[0], fast[0]), *zip(ref[1][:2], fast[1][:2])]
     pairs += [(getattr(ref[1][2], k), getattr(fast[1][2], k))
               for k in ('y', 'z_pred', 'Pzz', 'Pxz', 'K', 'eta', 'chi', 'Szz', 'w')]
-    assert fast[1][2].nis == pytest.approx(kf.nis(ref[1][2].y, ref[1][2].Pzz), rel=1e-12)
+    assert fast[1][2].nis() == pytest.approx(kf.nis(ref[1][2].y, ref[1][2].Pzz), rel=1e-12)
     for a, b in pairs:
         assert a.shape == b.shape
         assert np.abs(a - b).max() <= 1e-13 * np.abs(a).max()        # measured: 1.3e-15
@@ -348,6 +348,7 @@ def test_every_filter_has_the_declared_interface(name):
     upd = f.step(linear(F), np.array([0.3]), batched(lambda X: X[[1]]), np.array([1]))
     assert isinstance(upd, Innovation) and upd is f.last
     assert upd.y.shape == (1,) and upd.Pzz.shape == (1, 1)
+    assert upd.nis() == pytest.approx(kf.nis(upd.y, upd.Pzz), rel=1e-12)
     assert f.x.shape == (4,) and f.P.shape == (4, 4) and f.R.shape == (2, 2)
     f.step(linear(F), np.array([1e3, -1e3]), batched(lambda X: X[:2]), max_nis=10.0)
     assert f.rejected

@@ -469,7 +469,7 @@ def test_the_interval_full_search_agrees_with_the_running_sum():
 
 
 def test_the_kf_gate_and_the_engine_read_the_same_nis():
-    """A KF epoch's NIS is computed once (linear_kf.KFInnovation): the gate rejects an epoch
+    """A KF epoch's NIS is computed once (base.PriorInnovation.nis): the gate rejects an epoch
     whose NIS is above its threshold, accepts it at the threshold, and the engine reports
     that NIS."""
     rng = np.random.default_rng(2)

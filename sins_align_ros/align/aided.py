@@ -27,8 +27,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..filters.cubature import batched
-from ..filters.kf import nis
-from ..filters.linear_kf import KFInnovation
 from ..nav import kernels
 from ..nav.mechanization import MechanizationOptions, Strapdown, kernel_array
 from ..units import DPH, UG
@@ -477,7 +475,7 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
             if arm is not None:
                 self._return_arm_noise()
             # (a linear KF's innovation has computed its NIS for the gate already)
-            self.last_nis = upd.nis() if isinstance(upd, KFInnovation) else nis(upd.y, upd.Pzz)
+            self.last_nis = upd.nis()
             self.last_dof = len(upd.y)
             self.last_u = upd.y / np.sqrt(upd.Pzz.diagonal())
             self.last_rows = np.asarray(idx)

@@ -156,7 +156,7 @@ class ASCKF:
         tracking.add_innovation(probe.y)                                          # eq. 10
         apply = True
         if self.fading_gate is not None:
-            apply = probe.nis > self.fading_gate[len(idx)]
+            apply = probe.nis() > self.fading_gate[len(idx)]
         if self.whiteness is not None:
             L, r_min = self.whiteness
             hist = self._w_hist.setdefault(key, deque(maxlen=int(L) + 1))
@@ -209,7 +209,7 @@ class ASCKF:
         unfaded = (srckf_update(xp, S_l, z, hx, SR)
                    if max_nis is not None or self.fading else None)
         probe = None if unfaded is None else unfaded[2]
-        if max_nis is not None and probe.nis > max_nis:
+        if max_nis is not None and probe.nis() > max_nis:
             self.x, self.S, self.rejected, self.last = xp, S_l, True, probe
             if self.adaptive:
                 self.Q, self.R = self.noise.update(probe, idx, self.R_lent)

@@ -22,6 +22,8 @@ from typing import Optional, Protocol, runtime_checkable
 
 import numpy as np
 
+from .kf import nis
+
 
 @runtime_checkable
 class Innovation(Protocol):
@@ -32,8 +34,11 @@ class Innovation(Protocol):
 
     #: innovation ``z - h(x_pred)`` (m,)
     y: np.ndarray
-    #: its predicted covariance (m, m); ``y^T Pzz^-1 y`` is the epoch's NIS
+    #: its predicted covariance (m, m)
     Pzz: np.ndarray
+
+    def nis(self) -> float:
+        """Normalised innovation squared ``y^T Pzz^-1 y``, the epoch's NIS."""
 
 
 @runtime_checkable
@@ -84,10 +89,17 @@ class GaussianFilter(Protocol):
 class PriorInnovation:
     """Prior innovation ``y`` (m,) and its covariance ``Pzz`` (m, m) of one epoch."""
 
-    __slots__ = ('y', 'Pzz')
+    __slots__ = ('y', 'Pzz', '_nis')
 
     def __init__(self, y, Pzz):
         self.y, self.Pzz = y, Pzz
+        self._nis = None
+
+    def nis(self):
+        """Normalised innovation squared ``y^T Pzz^-1 y``, solved once (gate and diagnostics)."""
+        if self._nis is None:
+            self._nis = nis(self.y, self.Pzz)
+        return self._nis
 
 
 def measurement_rows(idx, M):

@@ -14,6 +14,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..nav import kernels
+from .kf import nis
 
 
 @lru_cache(maxsize=None)
@@ -145,7 +146,7 @@ class CubatureUpdate:
     cross covariance, ``K`` gain, ``eta`` (m, 2n) weighted measurement deviations
     (eq. 32), ``chi`` (n, 2n) weighted state deviations (eq. 34). The square-root
     update also gives ``Szz`` (m, m), the lower factor of ``Pzz`` (eq. 33), and ``w`` (m,),
-    the whitened innovation ``Szz^-1 y`` (``w^T w`` is the NIS, :attr:`nis`).
+    the whitened innovation ``Szz^-1 y`` (``w^T w`` is the NIS, :meth:`nis`).
     """
 
     y: np.ndarray
@@ -158,12 +159,11 @@ class CubatureUpdate:
     Szz: np.ndarray = None
     w: np.ndarray = None
 
-    @property
     def nis(self):
-        """Normalised innovation squared ``y^T Pzz^-1 y``."""
+        """Normalised innovation squared ``y^T Pzz^-1 y`` (``w^T w`` where there is ``w``)."""
         if self.w is not None:
             return float(self.w @ self.w)
-        return float(self.y @ np.linalg.solve(self.Pzz, self.y))
+        return nis(self.y, self.Pzz)
 
 
 def ckf_predict(x, P, fx, Q):

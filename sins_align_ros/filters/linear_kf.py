@@ -24,27 +24,7 @@ import numpy as np
 
 from .base import CovarianceFilter, PriorInnovation, measurement_rows
 from .cubature import batched
-from .kf import CLIP, nis
-
-
-class KFInnovation(PriorInnovation):
-    """:class:`~.base.PriorInnovation` of :class:`KF` that computes its NIS once.
-
-    :meth:`nis` is :func:`~.kf.nis` of ``y`` and ``Pzz``, kept after the first call: the
-    gate and the engine's diagnostics (``GnssAidedEngine.update``) both ask for it.
-    """
-
-    __slots__ = ('_nis',)
-
-    def __init__(self, y, Pzz):
-        super().__init__(y, Pzz)
-        self._nis = None
-
-    def nis(self):
-        """Normalised innovation squared ``y^T Pzz^-1 y`` (:func:`~.kf.nis`)."""
-        if self._nis is None:
-            self._nis = nis(self.y, self.Pzz)
-        return self._nis
+from .kf import CLIP
 
 
 def _identity(n):
@@ -106,7 +86,7 @@ class KF(CovarianceFilter):
         R = self.R_prior()[idx][:, idx]                 # the rows and columns of idx
         y = z - H @ self.x
         S = H @ self.P @ H.T + R
-        self.last = KFInnovation(y, S)
+        self.last = PriorInnovation(y, S)
         return H, y, S, R
 
     def R_prior(self):
