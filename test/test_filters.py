@@ -99,6 +99,16 @@ def test_compiled_square_root_ckf_equals_its_numpy_reference(fading, monkeypatch
     monkeypatch.setattr(kernels, 'COMPILED', True)
     with pytest.raises(np.linalg.LinAlgError):
         srckf_update(x, S, z, batched(lambda X: np.zeros((m, X.shape[1]))), np.zeros((m, m)))
+    for compiled in (True, False):        # shapes that disagree: ValueError on both paths
+        monkeypatch.setattr(kernels, 'COMPILED', compiled)
+        with pytest.raises(ValueError):
+            srckf_update(x, S, z[:-1], h, SR)
+        with pytest.raises(ValueError):
+            srckf_update(x, S, z, h, SR[:-1, :-1])
+        with pytest.raises(ValueError):
+            srckf_predict(x, S, batched(lambda X: X[:-1]), SQ)
+        with pytest.raises(ValueError):
+            srckf_predict(x, S, f, SQ, np.ones(n - 1))
 
 
 def test_ckf_matches_filterpy_to_round_off():

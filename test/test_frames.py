@@ -159,3 +159,6 @@ def test_orthonormalize_is_the_svd_polar_factor_to_round_off(departure, compiled
         for R in (fr.reorthonormalize(C), fr.orthonormalize(C)):
             assert np.abs(R - U @ Vt).max() < 2e-14
             assert np.abs(R.T @ R - np.eye(3)).max() < 2e-15
+    for bad in (np.full((3, 3), np.nan), np.diag([np.inf] * 3), np.diag([1.0, 1.0, np.nan])):
+        with pytest.raises(np.linalg.LinAlgError):       # as the SVD: never a silent NaN
+            fr.orthonormalize(bad)

@@ -159,3 +159,7 @@ def test_one_layout_shortcut_decodes_as_the_general_path(monkeypatch):
         other = serialize_message(_imu(11, frame + 'z')[0])   # another frame id length
         assert cdr._one_layout(raws + [other]) is None
         assert cdr._one_layout(raws[:3] + [raws[3][:-8]]) is None     # one cut short
+        views = [bytearray(r) for r in raws]                        # bytes-like, not bytes
+        assert cdr._one_layout(views) is None
+        for a, b in zip(cdr.imu_bodies(views), general):
+            assert np.array_equal(a, b)

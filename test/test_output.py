@@ -1,5 +1,6 @@
 """Output rows (align/output.py): fine-phase Rows converted in one pass, as one by one."""
 import numpy as np
+import pytest
 
 from sins_align_ros.align.output import Output, Rows, assemble, convert, unknown
 from sins_align_ros.nav.frames import euler_to_dcm
@@ -35,3 +36,17 @@ def test_a_run_of_rows_converts_as_each_part_alone():
         np.testing.assert_array_equal(getattr(out, name), getattr(alone, name), err_msg=name)
     assert np.isnan(out.nav[3:4]).all() and np.isfinite(out.nav[:3]).all()
     assert len(assemble(parts)) == len(out) == 15
+
+
+def test_a_result_csv_is_written_whole_or_not_at_all(tmp_path):
+    """A failure part-way (here a phase name that is no ASCII) keeps the previous file."""
+    from sins_align_ros.io.results import read_csv, write_csv
+    path = tmp_path / 'out.csv'
+    good = unknown(np.arange(3.0), 'waiting')
+    write_csv(path, good)
+    before = path.read_bytes()
+    assert read_csv(path)['phase'].tolist() == ['waiting'] * 3
+    bad = unknown(np.arange(5.0), 'wait\u00e9')
+    with pytest.raises(UnicodeEncodeError):
+        write_csv(path, bad)
+    assert path.read_bytes() == before and [p.name for p in tmp_path.iterdir()] == ['out.csv']

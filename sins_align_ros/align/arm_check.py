@@ -197,7 +197,10 @@ def fit_lever_arm(t_v, V, window, arm_b):
     scores = _grid_scores(V, U_l, B0, grid)
     # the vectorised scores only preselect: headings within round-off of the best are
     # scored again one by one, so the choice is exactly the one-by-one fit's
-    near = np.flatnonzero(scores <= scores.min() * (1.0 + _PRESELECT_TOL))
+    # (relative to the best and, for a best near 0, to the largest: round-off of the QR
+    # and of lstsq differ by more than the best score's own digits there)
+    near = np.flatnonzero(scores <= scores.min() * (1.0 + _PRESELECT_TOL)
+                          + _PRESELECT_TOL * scores.max())
     k = int(near[np.argmin([fit(i)[1] for i in near])])
     k_opp = (k + len(grid) // 2) % len(grid)
     ambiguous = fit(k_opp)[1] < AMBIGUITY_RATIO * fit(k)[1]

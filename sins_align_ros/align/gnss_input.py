@@ -133,10 +133,9 @@ class GnssInput:
 
     def velocity(self, t, v_n, vel_var=None):
         """Check an ENU velocity; returns ``vel_var`` to use (None: configured), or False."""
-        v_n = np.asarray(v_n, dtype=float).ravel()
-        speed_sq = float(v_n @ v_n)         # not finite: a component is not, or it overflowed
-        if not (math.isfinite(t) and (math.isfinite(speed_sq)
-                                      or all(map(math.isfinite, v_n.tolist())))):
+        v = np.asarray(v_n, dtype=float).ravel().tolist()
+        speed_sq = sum(x * x for x in v)    # inf when it overflows (no numpy warning)
+        if not (math.isfinite(t) and all(map(math.isfinite, v))):
             self._note('nan', 'non-finite value in gnss/vel: skipped')
             return False
         if math.sqrt(speed_sq) > 500.0:     # np.linalg.norm's arithmetic

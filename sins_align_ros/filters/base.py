@@ -38,7 +38,7 @@ class Innovation(Protocol):
     Pzz: np.ndarray
 
     def nis(self) -> float:
-        """Normalised innovation squared ``y^T Pzz^-1 y``, the epoch's NIS."""
+        """Return the normalised innovation squared ``y^T Pzz^-1 y``, the epoch's NIS."""
 
 
 @runtime_checkable
@@ -96,7 +96,7 @@ class PriorInnovation:
         self._nis = None
 
     def nis(self):
-        """Normalised innovation squared ``y^T Pzz^-1 y``, solved once (gate and diagnostics)."""
+        """Return the NIS ``y^T Pzz^-1 y``, solved once (the gate and diagnostics ask)."""
         if self._nis is None:
             self._nis = nis(self.y, self.Pzz)
         return self._nis

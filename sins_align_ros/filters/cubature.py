@@ -160,7 +160,7 @@ class CubatureUpdate:
     w: np.ndarray = None
 
     def nis(self):
-        """Normalised innovation squared ``y^T Pzz^-1 y`` (``w^T w`` where there is ``w``)."""
+        """Return the NIS ``y^T Pzz^-1 y`` (``w^T w`` where there is ``w``)."""
         if self.w is not None:
             return float(self.w @ self.w)
         return nis(self.y, self.Pzz)
@@ -219,13 +219,26 @@ def srckf_predict(x, S, fx, SQ, fading_sqrt=None):
     if kernels.COMPILED:
         xp, chi_star, S_pred = np.empty(n), np.empty((n, 2 * n)), np.empty((n, n))
         fade = np.ones(n) if fading_sqrt is None else np.asarray(fading_sqrt, dtype=float)
-        _predict_moments(np.ascontiguousarray(Xp, dtype=float), fade,
-                         np.ascontiguousarray(SQ, dtype=float), xp, chi_star, S_pred)
+        Xp, SQ = np.ascontiguousarray(Xp, dtype=float), np.ascontiguousarray(SQ, dtype=float)
+        _check_shapes(Xp.shape == (n, 2 * n) and fade.shape == (n,) and SQ.ndim == 2
+                      and SQ.shape[0] == n)
+        _predict_moments(Xp, fade, SQ, xp, chi_star, S_pred)
         return xp, S_pred, chi_star
     xp = Xp.mean(axis=1)
     chi_star = (Xp - xp[:, None]) / np.sqrt(2 * n)
     lead = chi_star if fading_sqrt is None else fading_sqrt[:, None] * chi_star
     return xp, tria(np.hstack([lead, SQ])), chi_star
+
+
+def _check_shapes(agree):
+    """Raise ``ValueError`` unless the arguments of a compiled SRCKF call agree in shape.
+
+    The kernels do not check bounds; numpy's reference lines raise ``ValueError`` for
+    the same mismatches (a transition or measurement of the wrong size), which the
+    engines report as a diverged filter.
+    """
+    if not agree:
+        raise ValueError('square-root CKF: arguments of mismatched shapes')
 
 
 @kernels.jit(sig='void(f8[:, :], f8[:], f8[:, :], f8[:], f8[:, :], f8[:, :])')
@@ -265,15 +278,16 @@ def srckf_update(x, S, z, hx, SR):
     X = S @ cubature_points(n) + x[:, None]
     Z = _propagate(hx, X)
     if kernels.COMPILED:
-        m = Z.shape[0]
+        X, Z = np.ascontiguousarray(X, dtype=float), np.ascontiguousarray(Z, dtype=float)
+        x, z = np.asarray(x, dtype=float), np.asarray(z, dtype=float)
+        SR = np.ascontiguousarray(SR, dtype=float)
+        m = len(z)
+        _check_shapes(Z.shape == (m, 2 * n) and SR.ndim == 2 and SR.shape[0] == m)
         x_new, S_new = np.empty(n), np.empty((n, n))
         y, zp, w = np.empty(m), np.empty(m), np.empty(m)
         eta, chi = np.empty((m, 2 * n)), np.empty((n, 2 * n))
         Szz, Pxz, K = np.empty((m, m)), np.empty((n, m)), np.empty((n, m))
-        if not _update_moments(X, np.asarray(x, dtype=float),
-                               np.ascontiguousarray(Z, dtype=float),
-                               np.asarray(z, dtype=float), np.ascontiguousarray(SR, dtype=float),
-                               x_new, S_new, y, zp, eta, chi, Szz, Pxz, K, w):
+        if not _update_moments(X, x, Z, z, SR, x_new, S_new, y, zp, eta, chi, Szz, Pxz, K, w):
             raise np.linalg.LinAlgError('Singular matrix')
         return x_new, S_new, CubatureUpdate(y, zp, Szz @ Szz.T, Pxz, K, eta, chi, Szz, w)
     zp = Z.mean(axis=1)

@@ -10,7 +10,6 @@ import numpy as np
 
 from .base import CovarianceFilter, PriorInnovation, measurement_rows
 from .cubature import _propagate, chol_lower
-from .kf import nis
 
 
 def merwe_weights(n, alpha=1e-3, beta=2.0, kappa=0.0):
@@ -96,7 +95,7 @@ class UKF(CovarianceFilter):
         xp, Pp = self.x, self.P
         x, P, y, S = ukf_update(xp, Pp, z, hx, self.R[np.ix_(idx, idx)], **self.sp)
         self.last = PriorInnovation(y, S)
-        self.rejected = max_nis is not None and nis(y, S) > max_nis
+        self.rejected = max_nis is not None and self.last.nis() > max_nis
         if not self.rejected:
             self.x, self.P = x, P
         return self.last

@@ -26,7 +26,6 @@ from .base import PriorInnovation, measurement_rows
 from .ckf import CKF
 from .cubature import ckf_predict
 from .chi2 import chi2_quantile
-from .kf import nis
 from .linear_kf import measurement_matrix
 from .variational import prior_alpha, vb_update
 
@@ -108,11 +107,11 @@ class VBCKF(CKF):
         a_pred, b_pred = self.rho * self.alpha[idx], self.rho * self.beta[idx]
         y = z - H @ xp
         S = H @ Pp @ H.T + np.diag(b_pred / a_pred)
-        self.last_nis = nis(y, S)
+        self.last = PriorInnovation(y, S)
+        self.last_nis = self.last.nis()
         if self.last_nis > chi2_quantile(OUTLIER_PROBABILITY, len(idx)):
             self.n_outliers += 1
         self.rejected = max_nis is not None and self.last_nis > max_nis
-        self.last = PriorInnovation(y, S)
         if self.rejected:
             self.x, self.P = xp, Pp
             return self.last

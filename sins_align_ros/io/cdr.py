@@ -97,7 +97,7 @@ def _one_layout(raws):
     """
     first = raws[0] if raws else b''
     size = len(first)
-    if size < 16 or first[:2] != bytes(CDR_LE):
+    if type(first) is not bytes or size < 16 or first[:2] != bytes(CDR_LE):
         return None
     a = _align(12 + int.from_bytes(first[12:16], 'little'), 8)
     if not 0 <= size - 4 - (a + _BODY) <= 3:

@@ -131,7 +131,7 @@ def _first_calls():
                  np.zeros((1, 1), np.uint8), np.zeros(1, np.int64))
 
 
-#: rows formatted per kernel call (a buffer of about 2 MB that the next call reuses)
+#: rows formatted per kernel call (each a fresh buffer of about 2 MB: yielded pieces stay valid)
 CHUNK_ROWS = 4096
 
 

@@ -9,6 +9,8 @@ epoch; the last row is the final result. Unknown values (waiting/coarse phases) 
 written as ``nan``.
 """
 import csv
+import os
+from pathlib import Path
 
 import numpy as np
 
@@ -48,10 +50,34 @@ def write_csv(path, out, every=1):
         np.degrees(nav[:, :2], out=values[:, 12:14])
         values[:, 14:] = nav[:, 2:]
         decimals += [10, 10] + [4] * 4
-    with open(path, 'wb') as f:
-        f.write((','.join(names) + '\r\n').encode('ascii'))
-        write_table(f, values, decimals, np.asarray(out.phase)[rows],
-                    text_col=COLUMNS.index('phase'))
+    _write_whole(path, (','.join(names) + '\r\n').encode('ascii'),
+                 lambda f: write_table(f, values, decimals, np.asarray(out.phase)[rows],
+                                       text_col=COLUMNS.index('phase')))
+
+
+def _write_whole(path, head, write_body):
+    """Write ``head`` then ``write_body(f)`` to ``path``, all or nothing.
+
+    The text is written as it is formatted: into a temporary file beside ``path`` that
+    replaces it only once complete, so a failure part-way leaves the previous file (or
+    none), not a truncated one. A ``path`` that exists and is no regular file (a pipe,
+    ``/dev/stdout``) is written directly.
+    """
+    target = Path(path)
+    if target.exists() and not target.is_file():
+        with open(target, 'wb') as f:
+            f.write(head)
+            write_body(f)
+        return
+    tmp = target.with_name(f'.{target.name}.{os.getpid()}.tmp')
+    try:
+        with open(tmp, 'wb') as f:
+            f.write(head)
+            write_body(f)
+        os.replace(tmp, target)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def read_csv(path):

@@ -56,10 +56,17 @@ LABELS = ('dVE', 'dVN', 'dpE', 'dpN', 'phiE', 'phiN', 'phiU', 'epsE', 'epsN', 'e
           'nabX', 'nabY', 'nabZ')
 
 
+def _cos_sin(a):
+    """``(cos a, sin a)`` of a float; NaN for a non-finite ``a`` as numpy gives (math raises)."""
+    if not math.isfinite(a):
+        return math.nan, math.nan
+    return math.cos(a), math.sin(a)
+
+
 def C_n_nprime(phi):
     """``C_n^n'`` of seed 000 eq. 2 in the package convention (see module docstring)."""
     pe, pn, pu = map(float, phi)
-    c, s = math.cos(pu), math.sin(pu)
+    c, s = _cos_sin(pu)
     return np.array([[c, s, -pn],
                      [-s, c, pe],
                      [pn * c + pe * s, pn * s - pe * c, 1.0]])
@@ -145,9 +152,7 @@ def _terms(lat, h, f_n, v_n):
     :func:`~sins_align_ros.nav.earth.w_ie_n`, :func:`~sins_align_ros.nav.earth.w_en_n`).
     """
     sl, cl = np.sin(lat), np.cos(lat)
-    w = 1.0 - earth.E2 * sl * sl
-    R_N = earth.A / np.sqrt(w)
-    R_M = earth.A * (1.0 - earth.E2) / (w * np.sqrt(w))
+    R_M, R_N = kernels._radii(lat)
     tl = np.tan(lat)
     w_en = (-v_n[1] / (R_M + h), v_n[0] / (R_N + h), v_n[0] * tl / (R_N + h))
     w_ie = (0.0, earth.OMEGA_IE * cl, earth.OMEGA_IE * sl)
@@ -267,7 +272,7 @@ def reset_jacobian(phi_hat):
     recursion of the same F, Q, H and R without the mixing gave 19 deg; the heading
     ended 28 deg off).
     """
-    c, s = math.cos(phi_hat[2]), math.sin(phi_hat[2])
+    c, s = _cos_sin(float(phi_hat[2]))
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 

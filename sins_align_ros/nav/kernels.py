@@ -175,8 +175,9 @@ def _newton_schulz(C, T, steps):
     squares the departure (``3/4 |E|^2``), so the 1e-13 that 1000 products of rotations
     gather is gone to round-off in two; the same matrix as the SVD's ``U V^T`` to 1e-16.
     Not the SVD because LAPACK inside compiled code makes numba import ``scipy.linalg``
-    (0.15 s of a replay's start). Returns the departure measured before the last step
-    taken (below 1e-15: converged).
+    (0.15 s of a replay's start). Returns the departure of the ``C`` left (below 1e-15:
+    converged; ``C`` is not stepped after its departure is measured below that or after
+    the last of the ``steps``).
     """
     err = 0.0
     for k in range(steps + 1):
@@ -196,8 +197,9 @@ def _newton_schulz(C, T, steps):
     return err
 
 
-#: departure ``max |C^T C - I|`` up to which :func:`polar_factor` iterates (singular
-#: values within about 0.7-1.2: seven steps at most); further, the SVD
+#: departure ``max |C^T C - I|`` up to which :func:`polar_factor` iterates (a mean
+#: attitude over an interval or an attitude after feedback is far inside it; a matrix that
+#: passes but is singular runs out of steps); further, the SVD
 POLAR_MAX_DEPARTURE = 0.5
 
 
@@ -208,10 +210,13 @@ def polar_factor(C, out):
     Newton-Schulz steps (:func:`_newton_schulz`) from a matrix within
     :data:`POLAR_MAX_DEPARTURE` of orthonormal: a filter's attitude after feedback, or
     the mean attitude over an interval. False (``out`` not usable) when ``C`` is further
-    or the steps do not reach round-off: the caller takes the SVD.
+    or the steps do not reach round-off, and when an entry is not finite (the SVD then
+    raises, as without the kernels): the caller takes the SVD.
     """
     for i in range(3):
         for j in range(3):
+            if not np.isfinite(C[i, j]):
+                return False
             out[i, j] = C[i, j]
     T = np.empty((3, 3))
     err = 0.0
