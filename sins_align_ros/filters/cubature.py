@@ -248,22 +248,32 @@ def _predict_moments(Xp, fade, SQ, xp, chi_star, S):
     From the propagated points ``Xp`` (n, 2n), the fading roots ``fade`` (n,) and
     ``SQ`` (n, q): mean, weighted deviations (eq. 27) and ``Tria([fade chi*, SQ])``.
     """
-    n, N = Xp.shape
-    q = SQ.shape[1]
+    _tria_householder(_moments(Xp, fade, SQ, xp, chi_star), S)
+
+
+@kernels.jit
+def _moments(P, scale, root, mean, dev):
+    """Row means of the points ``P`` (k, N) and their weighted deviations; return ``Tria``'s input.
+
+    Writes ``mean`` (k,) and ``dev = (P - mean) / sqrt(N)`` (k, N); returns
+    ``[scale dev, root]`` (k, N + r), ``scale`` (k,) scaling the rows, ``root`` (k, r).
+    """
+    k, N = P.shape
+    r = root.shape[1]
     w = 1.0 / np.sqrt(N)
-    A = np.empty((n, N + q))
-    for i in range(n):
+    A = np.empty((k, N + r))
+    for i in range(k):
         m = 0.0
         for j in range(N):
-            m += Xp[i, j]
+            m += P[i, j]
         m /= N
-        xp[i] = m
+        mean[i] = m
         for j in range(N):
-            chi_star[i, j] = (Xp[i, j] - m) * w
-            A[i, j] = fade[i] * chi_star[i, j]
-        for j in range(q):
-            A[i, N + j] = SQ[i, j]
-    _tria_householder(A, S)
+            dev[i, j] = (P[i, j] - m) * w
+            A[i, j] = scale[i] * dev[i, j]
+        for j in range(r):
+            A[i, N + j] = root[i, j]
+    return A
 
 
 def srckf_update(x, S, z, hx, SR):
@@ -318,20 +328,9 @@ def _update_moments(X, x, Z, z, SR, x_new, S_new, y, zp, eta, chi, Szz, Pxz, K, 
     n, N = X.shape
     m, r = Z.shape[0], SR.shape[1]
     weight = 1.0 / np.sqrt(N)
-    A = np.empty((m, N + r))
+    _tria_householder(_moments(Z, np.ones(m), SR, zp, eta), Szz)
     for i in range(m):
-        s = 0.0
-        for j in range(N):
-            s += Z[i, j]
-        s /= N
-        zp[i] = s
-        y[i] = z[i] - s
-        for j in range(N):
-            eta[i, j] = (Z[i, j] - s) * weight
-            A[i, j] = eta[i, j]
-        for j in range(r):
-            A[i, N + j] = SR[i, j]
-    _tria_householder(A, Szz)
+        y[i] = z[i] - zp[i]
     for i in range(m):
         if Szz[i, i] == 0.0:
             return False
