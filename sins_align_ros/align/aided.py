@@ -28,7 +28,7 @@ import numpy as np
 
 from ..filters.cubature import batched
 from ..nav import kernels
-from ..nav.mechanization import MechanizationOptions, Strapdown, kernel_array
+from ..nav.mechanization import MechanizationOptions, Strapdown
 from ..units import DPH, UG
 from .epoch_noise import EpochNoise
 from .force import ForceModel
@@ -146,7 +146,11 @@ class IntervalSums:
         self.T = kernels.interval_sums(
             self.T, self.dv_sum, self.v_sum, self.C_sum if self.attitude else _NO_C_SUM,
             self.attitude, out['dv_sf'], out['v_n'], out['C_b_n'],
-            kernel_array(dt))
+            kernels.kernel_array(dt))
+
+
+#: no sample index (:meth:`GnssAidedEngine._interval_full` between GNSS epochs)
+_NO_INDEX = np.zeros(0, dtype=np.intp)
 
 
 @dataclass
@@ -385,7 +389,7 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
         T = self.sums.T
         if (T >= 0.0 and T + np.add.reduce(w) < MAX_PREDICT * (1.0 - 1e-9)
                 and np.minimum.reduce(w) >= 0.0):
-            return ()
+            return _NO_INDEX
         return np.flatnonzero(np.cumsum(np.concatenate(([T], w)))[1:] >= MAX_PREDICT)
 
     def predict(self, without_gnss=True):

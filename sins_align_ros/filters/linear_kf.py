@@ -53,8 +53,12 @@ def linear(F):
 
 
 def measurement_matrix(hx, n):
-    """``H = hx(I)`` (m, n) of a linear (batched) measurement function of ``n`` states."""
-    return np.asarray(hx(np.eye(n)), dtype=float)
+    """``H = hx(I)`` (m, n) of a linear (batched) measurement function of ``n`` states.
+
+    ``I`` is the shared read-only identity (:func:`_identity`): ``hx`` must not write
+    into its argument (selecting or combining rows does not).
+    """
+    return np.asarray(hx(_identity(n)), dtype=float)
 
 
 class KF(CovarianceFilter):
@@ -82,7 +86,7 @@ class KF(CovarianceFilter):
         """Predict; return ``(H, y, S, R_sub)`` of the epoch under the current R."""
         self.predict(fx)
         self.P_nominal = self.P
-        H = np.asarray(hx(_identity(len(self.x))), dtype=float)       # measurement_matrix
+        H = measurement_matrix(hx, len(self.x))
         R = self.R_prior()[idx][:, idx]                 # the rows and columns of idx
         y = z - H @ self.x
         S = H @ self.P @ H.T + R

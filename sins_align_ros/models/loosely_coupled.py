@@ -117,8 +117,8 @@ def F_matrix(C_b_n, f_n, v_n, lat, h, tau_g, tau_a, n_states=15):
     if n_states not in (15, 18):
         raise ValueError(f'n_states must be 15 or 18, not {n_states}')
     F = np.zeros((n_states, n_states))
-    _fill_F(F, np.require(C_b_n, float, ['C', 'W']), np.require(f_n, float, ['C', 'W']),
-            np.require(v_n, float, ['C', 'W']), float(lat), float(h), 1.0 / tau_g,
+    _fill_F(F, kernels.kernel_array(C_b_n), kernels.kernel_array(f_n),
+            kernels.kernel_array(v_n), float(lat), float(h), 1.0 / tau_g,
             1.0 / tau_a)
     return F
 

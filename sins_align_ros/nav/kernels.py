@@ -122,6 +122,22 @@ def warms_up(func):
     return func
 
 
+def kernel_array(a):
+    """Return ``a`` as a C-contiguous, writeable float64 array (a copy only when it is not one).
+
+    The form of an array argument of the kernels called from Python: numba compiles a
+    separate version for read-only arrays (a broadcast one is), and the ahead-of-time
+    module takes float64 only.
+
+    ``np.require(a, float, ['C', 'W'])``'s result, without its cost (several
+    microseconds, at every block of ``Strapdown.run``).
+    """
+    a = np.asarray(a, dtype=float)
+    if a.flags.c_contiguous and a.flags.writeable:
+        return a
+    return np.array(a, dtype=float, order='C')
+
+
 @jit
 def _radii(lat):
     s = math.sin(lat)

@@ -303,13 +303,13 @@ class Strapdown:
         """
         # contiguous and writeable: numba compiles a separate version for read-only arrays
         # (a broadcast dt is one), which cost a live node a second at its first block
-        dtheta = kernel_array(dtheta)
-        dv = kernel_array(dv)
+        dtheta = kernels.kernel_array(dtheta)
+        dv = kernels.kernel_array(dv)
         n = len(dtheta)
         dt = np.asarray(dt, dtype=float)
         if dt.shape != (n,):              # one interval for every sample
             dt = np.broadcast_to(dt, (n,))
-        dt = kernel_array(dt)
+        dt = kernels.kernel_array(dt)
         out = {'C_b_n': np.empty((n, 3, 3)), 'v_n': np.empty((n, 3)), 'pos': np.empty((n, 3)),
                'dv_sf': np.empty((n, 3))}
         if n == 0:
@@ -330,18 +330,6 @@ class Strapdown:
         self.lat, self.lon, self.h = pos.tolist()
         self.dv_sf = out['dv_sf'][-1].copy()
         return out
-
-
-def kernel_array(a):
-    """Return ``a`` as a C-contiguous, writeable float64 array (a copy only when it is not one).
-
-    ``np.require(a, float, ['C', 'W'])``'s result, without its cost (several
-    microseconds, at every block of :meth:`Strapdown.run`).
-    """
-    a = np.asarray(a, dtype=float)
-    if a.flags.c_contiguous and a.flags.writeable:
-        return a
-    return np.array(a, dtype=float, order='C')
 
 
 def _exp_so3_batch(v):
