@@ -9,6 +9,30 @@ from sins_align_ros.sim.imu import ImuSimulator, ImuSpec
 from sins_align_ros.sim.presets import SEED000_SWAY, Segment, scenario
 from sins_align_ros.sim.trajectory import Sway, Trajectory
 from sins_align_ros.units import ARCSEC, DEG
+from tolerance import roundoff
+
+#: Round-off of one strapdown step run in another order (the compiled loop against
+#: numpy's per-sample path; test/tolerance.py): two DCMs from rotation vectors (~20
+#: operations each) and two 3x3 products (5 each). The products are orthonormal, so an
+#: attitude error is passed on with gain 1 and the chain after N steps is N x STEP_OPS.
+STEP_OPS = 50
+
+
+def recurrence_bounds(n, dv, dt, v, h):
+    """Round-off bounds on attitude, velocity, latitude/longitude and height after n steps.
+
+    The velocity integrates ``C dv + g dt``: the attitude's error times the integrated
+    size of both (``sum |dv| + g T``), plus its own ~10 operations a step on ``|v|``. The
+    position integrates the velocity over ``T``: latitude and longitude through ``1 / R``
+    (6.4e6 m), the height directly, plus 2 operations a step on its own size (``lat`` ~1 rad,
+    ``h`` m).
+    """
+    T = float(np.sum(dt)) if np.ndim(dt) else n * dt
+    att = roundoff(n * STEP_OPS)
+    vel = roundoff(n * STEP_OPS, np.linalg.norm(dv, axis=1).sum() + 9.8 * T) \
+        + roundoff(n * 10, np.abs(v).max())
+    return att, vel, vel * T / 6.3e6 + roundoff(n * 2, np.pi), vel * T + roundoff(n * 2, h)
+
 
 TRAJECTORIES = {
     'static': Trajectory(34.0, 108.0, 100.0, heading_deg=30.0, pitch_deg=1.0, roll_deg=-2.0),
@@ -145,11 +169,14 @@ def test_compiled_run_equals_the_per_sample_reference(options):
     C = np.concatenate([out['C_b_n'], rest['C_b_n']])
     V = np.concatenate([out['v_n'], rest['v_n']])
     P = np.concatenate([out['pos'], rest['pos']])
-    np.testing.assert_allclose(C, C_ref, rtol=0, atol=1e-13)
-    np.testing.assert_allclose(V, V_ref, rtol=0, atol=1e-10)
-    np.testing.assert_allclose(P[:, :2], P_ref[:, :2], rtol=0, atol=1e-14)
-    np.testing.assert_allclose(P[:, 2], P_ref[:, 2], rtol=0, atol=1e-9)
-    np.testing.assert_allclose(fast.dv_sf, ref.dv_sf, rtol=0, atol=1e-14)
+    att, vel, latlon, height = recurrence_bounds(2500, dv, dt, V_ref, np.abs(P_ref[:, 2]).max())
+    np.testing.assert_allclose(C, C_ref, rtol=0, atol=att)
+    np.testing.assert_allclose(V, V_ref, rtol=0, atol=vel)
+    np.testing.assert_allclose(P[:, :2], P_ref[:, :2], rtol=0, atol=latlon)
+    np.testing.assert_allclose(P[:, 2], P_ref[:, 2], rtol=0, atol=height)
+    # the last step's specific-force increment: one DCM (20) times dv (5)
+    np.testing.assert_allclose(fast.dv_sf, ref.dv_sf, rtol=0,
+                               atol=roundoff(25, np.abs(dv).max()) + att * np.abs(dv).max())
     assert fast._steps == ref._steps == 2500
     np.testing.assert_array_equal(dtheta, c.dtheta)      # inputs untouched
     np.testing.assert_array_equal(dv, c.dv)
@@ -172,11 +199,14 @@ def test_compiled_run_as_step_equals_scalar_steps_and_mixes_with_them():
     single = [mix.step(c.dtheta[k], c.dv[k], 0.01).copy() for k in range(1200, 1300)]
     b = mix.run(c.dtheta[1300:], c.dv[1300:], 0.01, as_step=True)
     C = np.concatenate([a['C_b_n'], single, b['C_b_n']])
-    np.testing.assert_allclose(C, C_ref, rtol=0, atol=1e-14)
-    np.testing.assert_allclose(mix.v_n, ref.v_n, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(mix.position, ref.position, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(mix.dv_sf, ref.dv_sf, rtol=0, atol=1e-15)
-    np.testing.assert_allclose(b['dv_sf'][-1], ref.dv_sf, rtol=0, atol=1e-15)
+    att, vel, latlon, height = recurrence_bounds(3000, c.dv, 0.01, c.v_n, abs(ref.position[2]))
+    np.testing.assert_allclose(C, C_ref, rtol=0, atol=att)
+    np.testing.assert_allclose(mix.v_n, ref.v_n, rtol=0, atol=vel)
+    np.testing.assert_allclose(mix.position[:2], ref.position[:2], rtol=0, atol=latlon)
+    np.testing.assert_allclose(mix.position[2], ref.position[2], rtol=0, atol=height)
+    dv_sf = roundoff(25, np.abs(c.dv).max()) + att * np.abs(c.dv).max()   # as above
+    np.testing.assert_allclose(mix.dv_sf, ref.dv_sf, rtol=0, atol=dv_sf)
+    np.testing.assert_allclose(b['dv_sf'][-1], ref.dv_sf, rtol=0, atol=dv_sf)
 
 
 def test_stationary_compiled_run_equals_the_vectorised_one():
@@ -193,6 +223,9 @@ def test_stationary_compiled_run_equals_the_vectorised_one():
         for i in range(0, 3000, 10):
             ra = a.run(c.dtheta[i:i + 10], c.dv[i:i + 10], 0.01)
             rb = b.run_vectorised(c.dtheta[i:i + 10], c.dv[i:i + 10], 0.01)
-            np.testing.assert_allclose(ra['C_b_n'], rb['C_b_n'], rtol=0, atol=1e-13)
-            np.testing.assert_allclose(ra['v_n'], rb['v_n'], rtol=0, atol=1e-11)
+            # numpy's prefix products (a tree of up to log2(10) + 1 products) against the
+            # loop: both carry i + 10 steps from the start
+            att, vel, _, _ = recurrence_bounds(i + 10, c.dv[:i + 10], 0.01, rb['v_n'], 0.0)
+            np.testing.assert_allclose(ra['C_b_n'], rb['C_b_n'], rtol=0, atol=att)
+            np.testing.assert_allclose(ra['v_n'], rb['v_n'], rtol=0, atol=vel)
         assert a._steps == b._steps == 3000
