@@ -21,6 +21,7 @@ from std_srvs.srv import Trigger  # noqa: E402
 from conftest import spin_until  # noqa: E402
 from sins_align_ros.nav.frames import attitude_error, euler_to_dcm  # noqa: E402
 from sins_align_ros.ros.alignment_node import AlignmentNode  # noqa: E402
+from sins_align_ros.ros.diagnostics import MESSAGE_MAX  # noqa: E402
 from sins_align_ros.ros.playback import Player  # noqa: E402
 from sins_align_ros.sim.faults import FAULTS, MessageStream, inject  # noqa: E402
 from sins_align_ros.sim.presets import scenario  # noqa: E402
@@ -63,13 +64,22 @@ class Rig:
         return self.player.play(self.ex, stream, t0, t1)
 
     def flush_diagnostics(self):
-        """Spin until a diagnostic published after everything played has arrived."""
+        """Spin until a diagnostic published after everything played has arrived.
+
+        Every message so far is at most MESSAGE_MAX (200) characters long.
+        """
         n = len(self.diags)
         assert spin_until(self.ex, lambda: len(self.diags) > n + 1, timeout_s=10.0)
+        assert max(len(d.message) for d in self.diags) <= MESSAGE_MAX
 
     def said(self, level, needle):
-        """Whether some diagnostic had at least ``level`` and ``needle`` in its message."""
-        return any(d.level >= level and needle in d.message for d in self.diags)
+        """Whether some diagnostic had at least ``level`` and ``needle`` in its message.
+
+        Or in its value ``details``: the message's items uncut (the message is cut to
+        MESSAGE_MAX characters).
+        """
+        return any(d.level >= level and (needle in d.message or needle in _details(d))
+                   for d in self.diags)
 
     def messages(self):
         return [f'{d.level!r} {d.message}' for d in self.diags if d.level != b'\x00']
@@ -87,6 +97,10 @@ class Rig:
 
     def close(self):
         self.ex.shutdown()
+
+
+def _details(status):
+    return next((kv.value for kv in status.values if kv.key == 'details'), '')
 
 
 def _original_time(stream, t_stamp):

@@ -159,7 +159,7 @@ def test_configure_activate_deactivate_cleanup_through_the_services(ros_context)
     assert node.pipeline.phase in ('fine', 'aligned')
     assert np.abs(euler_of(c.out[-1]) - RPY).max() < 0.01 * DEG
     assert spin_until(c.ex, lambda: c.diag, timeout_s=2.0)
-    assert c.diag[-1].status[0].name == 'alignment_node: alignment'
+    assert c.diag[-1].status[0].name == '/alignment_node: alignment'   # fully qualified
 
     assert c.transition(Transition.TRANSITION_DEACTIVATE)
     assert c.state() == 'inactive'

@@ -250,7 +250,7 @@ def test_alignment_node_reports_waiting_then_counts_imu(ros_context):
     ex.add_node(rec.node)
     assert spin_until(ex, lambda: rec.msgs['diag'], timeout_s=10.0)
     st = rec.msgs['diag'][0].status[0]
-    assert st.name == 'alignment_node: alignment' and 'waiting' in st.message
+    assert st.name == '/alignment_node: alignment' and 'waiting' in st.message
     assert st.level == DiagnosticStatus.WARN
     ex.add_node(sim)
     assert spin_until(ex, lambda: node.counts['imu'] > 300, timeout_s=30.0)

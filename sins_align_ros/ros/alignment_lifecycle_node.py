@@ -24,13 +24,24 @@ through the lifecycle services ``~/change_state`` and ``~/get_state`` (lifecycle
   *unconfigured*;
 * ``shutdown`` (from any state), or an error in a transition: tears down whatever exists.
 
+A transition the current state does not have (a second ``configure`` while inactive, an
+unknown id or label) is refused: ``~/change_state`` answers ``success=false``, the reason
+(the state and the transitions it has) is logged at WARN and the node keeps its state.
+(rclpy's own handler would raise, which ended the process.)
+
+The typed status (``~/phase``, ``~/reason``, ``~/tilt_ready``, ``~/heading_ready``) is
+published again at each activation; inactive, nothing is published.
+
 Parameter changes: while unconfigured they are stored (each value checked on its own);
 while configured an alignment parameter restarts the session, as in the plain node.
 """
 import sys
+import time
 from collections import Counter
 
+from lifecycle_msgs.msg import Transition
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 from rclpy.timer import Timer
 
@@ -39,6 +50,9 @@ from .runner import make_executor, run
 
 SUCCESS = TransitionCallbackReturn.SUCCESS
 FAILURE = TransitionCallbackReturn.FAILURE
+#: lifecycle_msgs/Transition's ids by name, for the refusals
+_TRANSITIONS = {v: k[len('TRANSITION_'):].lower() for k, v in vars(Transition).items()
+                if k.startswith('TRANSITION_') and isinstance(v, int)}
 
 
 class AlignmentLifecycleNode(AlignmentShell, LifecycleNode):
@@ -52,6 +66,28 @@ class AlignmentLifecycleNode(AlignmentShell, LifecycleNode):
         self._outputs = []      # ~/reset and the timers (configured)
         self.counts = {'imu': 0}
         self.received = Counter()
+        self.typed = None
+        # refuse a transition the state does not have instead of raising (rclpy's handler)
+        srv = self._service_change_state
+        self._rclpy_change_state, srv.callback = srv.callback, self._on_change_state
+
+    def _on_change_state(self, request, response):
+        """``~/change_state``: refuse (``success=false``, reason logged) what the state lacks."""
+        current = self._state_machine.current_state[1]
+        possible = self._state_machine.available_transitions    # (id, label, ...) of the state
+        t = request.transition
+        if not any(t.label == p[1] if t.label else t.id == p[0] for p in possible):
+            asked = f"'{t.label}'" if t.label else f'{_TRANSITIONS.get(t.id, "id")} ({t.id})'
+            reason = (f"transition {asked} refused: not possible from state '{current}' "
+                      f"(possible: {', '.join(f'{p[1]} ({p[0]})' for p in possible) or 'none'})")
+        else:
+            try:
+                return self._rclpy_change_state(request, response)
+            except _rclpy.RCLError as exc:    # the state machine refused it after all
+                reason = f'transition refused in state {current!r}: {exc}'
+        self.get_logger().warn(reason)
+        response.success = False
+        return response
 
     # -- transitions -------------------------------------------------------------------------
     def on_configure(self, state):
@@ -70,10 +106,13 @@ class AlignmentLifecycleNode(AlignmentShell, LifecycleNode):
         return SUCCESS
 
     def on_activate(self, state):
-        """Activate the publishers, then subscribe to the input."""
+        """Activate the publishers, subscribe to the input, publish the typed status."""
         ret = super().on_activate(state)          # the managed publishers
         if ret == SUCCESS:
             self._inputs = self._subscribe()
+            self._last_imu_wall = time.monotonic()      # the input (re)starts now
+            self.typed.forget()
+            self._update_typed()
         return ret
 
     def on_deactivate(self, state):
@@ -110,6 +149,9 @@ class AlignmentLifecycleNode(AlignmentShell, LifecycleNode):
             if pub is not None:
                 self.destroy_lifecycle_publisher(pub)
                 setattr(self, name, None)
+        for pub in self.typed.publishers() if self.typed is not None else ():
+            self.destroy_lifecycle_publisher(pub)
+        self.typed = None
         for entity in self._outputs:
             if isinstance(entity, Timer):
                 self.destroy_timer(entity)
@@ -124,9 +166,12 @@ class AlignmentLifecycleNode(AlignmentShell, LifecycleNode):
             return SetParametersResult(successful=True)
         return super()._check_pipeline_params(changes)
 
+    def _publishing(self):
+        return self.pub_diag is not None and self.pub_diag.is_activated
+
     def _publish_diagnostics(self):
         """Publish the diagnostics while active; inactive, keep the period for later."""
-        if self.pub_diag is not None and self.pub_diag.is_activated:
+        if self._publishing():
             super()._publish_diagnostics()
 
 

@@ -15,9 +15,13 @@ tool drives too, with the input checks and restart rules — and the node publis
   marked unknown (``orientation_covariance[0] = -1``, REP-145). With
   ``imu_mounting_rpy_deg`` set, the body is the vehicle: rates, accelerations and their
   covariances are turned into its frame and the frame_id is ``base_frame_id``;
-* ``~/euler`` (geometry_msgs/Vector3Stamped): REP-103 roll, pitch, yaw in rad;
-* ``/diagnostics`` (diagnostic_msgs/DiagnosticArray, status ``<node>: alignment``,
-  :mod:`.diagnostics`);
+* ``~/euler`` (geometry_msgs/Vector3Stamped): REP-103 roll, pitch, yaw in rad; NaN for
+  an angle the node does not know (yaw while the heading is unobservable,
+  :func:`.status.known_euler`);
+* ``~/phase``, ``~/reason`` (std_msgs/String), ``~/tilt_ready``, ``~/heading_ready``
+  (std_msgs/Bool): the typed status, latched, on change (:mod:`.status`);
+* ``/diagnostics`` (diagnostic_msgs/DiagnosticArray, status ``<namespace/node>:
+  alignment``, :mod:`.diagnostics`);
 * ``~/odom`` (nav_msgs/Odometry) with the navigation filters (``kf``, ``vbakf``,
   ``mvbakf``, ``ukf``) and ``continue_navigation``: the GNSS/INS solution at every
   IMU sample from the start of fine alignment on, pose in ``odom_frame_id`` (ENU,
@@ -37,7 +41,9 @@ reset or the period's timer flushes the batch first. They are taken and publishe
 serialized bytes, decoded by the batch (:mod:`.imu_wire`): no Python message object per
 sample.
 
-Service ``~/reset`` (std_srvs/Trigger) restarts the alignment in any phase.
+Service ``~/reset`` (std_srvs/Trigger) restarts the alignment in any phase. An exception
+in a callback is handed to :meth:`AlignmentShell.on_callback_error` by the spin loop
+(:func:`.runner.spin`): logged, counted, the alignment restarted; the node goes on.
 Changing an alignment parameter at runtime (``fine_filter`` included) restarts
 the alignment with it; invalid values are refused with the reason.
 
@@ -59,11 +65,12 @@ from sensor_msgs.msg import Imu, NavSatFix
 from std_srvs.srv import Trigger
 
 from .conversions import set_vector3, stamp_to_sec
-from .diagnostics import FaultLog, alignment_status
+from .diagnostics import CallbackErrors, FaultLog, RecentNotes, alignment_status, input_values
 from .imu_wire import ImuRows, echo_bodies, header_message
 from .messages import odometry_bodies
 from .params import declare
 from .runner import make_executor, run
+from .status import NO_IMU, TypedStatus, imu_stopped, known_euler, typed_state
 from ..align import params as prm
 from ..align.odometry import OdometryFrame
 from ..align.session import AlignmentSession
@@ -99,6 +106,7 @@ class AlignmentShell:
         self._align_values = {k: v for k, v in self.p.items() if k in _ALIGN_NAMES}
         self.add_on_set_parameters_callback(self._check_pipeline_params)
         self.add_post_set_parameters_callback(self._apply_params)
+        self.errors = CallbackErrors(self.get_logger())
 
     def _start_session(self):
         """Build the session from the parameters and start the run's state afresh.
@@ -113,7 +121,8 @@ class AlignmentShell:
         self._recent = deque(maxlen=4 * 4096 + 64)
         self.faults = FaultLog(self.get_logger())
         self._period_imu = [0, 0]     # IMU messages received, accepted in this period
-        self._events = []
+        #: restarts and pipeline notes for the message; the last restart; the typed phase
+        self.notes, self._last_restart, self._typed_phase = RecentNotes(), '', None
         self.odom = OdometryFrame()
         self._odom_heads = {}                 # (frame, Imu header's frame part): ~/odom's
         #: IMU messages waiting for the batch: (stamp, message); when the first came (s)
@@ -146,6 +155,7 @@ class AlignmentShell:
         self.pub_euler = create_publisher(Vector3Stamped, '~/euler', 50)
         self.pub_diag = create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.pub_odom = create_publisher(Odometry, '~/odom', 50)
+        self.typed = TypedStatus(create_publisher)
         made = [self.create_service(Trigger, '~/reset', self._on_reset),
                 self.create_timer(self.p['diagnostic_period'], self._publish_diagnostics)]
         if self.p['imu_batch_period'] > 0.0:
@@ -194,13 +204,44 @@ class AlignmentShell:
         return response
 
     def _drain(self):
-        """Log the session's restarts and count its input notices."""
+        """Log the session's restarts, count its input notices, publish a new phase."""
         for level, text in self.session.pop_events():
-            getattr(self.get_logger(), level)(text)
-            self._events.append(text)
+            if level == 'warn':       # rclpy: one severity per call site
+                self.get_logger().warn(text)
+            else:
+                self.get_logger().info(text)
+            self.notes.add([text])
+            self._last_restart = text
             self.odom = OdometryFrame()
         for source, key, text in self.session.notices():
             self.faults.add(_SOURCES[source], key, text)
+        if self.pipeline.phase != self._typed_phase or self.typed.last.get('reason') == NO_IMU:
+            self._update_typed()
+
+    def on_callback_error(self, exc):
+        """Take an exception a callback raised (:func:`.runner.spin`): log, count, restart."""
+        text = self.errors.add(exc)
+        if self.session is not None:      # a managed node not configured: nothing to restart
+            self._batch = []              # the messages it may have come from
+            self.session.restart(f'exception in a callback ({text})', 'warn')
+            self._drain()
+
+    def _update_typed(self, s=None):
+        """Publish what changed of the typed status (:mod:`.status`); return the state."""
+        state = typed_state(self.pipeline.status() if s is None else s,
+                            imu_stopped(self._imu_age(), self.p['diagnostic_period']))
+        self._typed_phase = self.pipeline.phase
+        if self._publishing():
+            self.typed.update(state)
+        return state
+
+    def _publishing(self):
+        """Tell whether the outputs publish (a managed node: while active)."""
+        return True
+
+    def _imu_age(self):
+        """Return the seconds since the last IMU message (None before the first)."""
+        return None if self._last_imu_wall is None else time.monotonic() - self._last_imu_wall
 
     # -- input -------------------------------------------------------------------------------
     def _on_fix(self, msg):
@@ -309,10 +350,11 @@ class AlignmentShell:
         for (_, head, _), body in zip(srcs, bodies):
             publish(head + body.tobytes())
         if self.pub_euler.get_subscription_count():     # none: not built
+            euler = known_euler(out)
             for k, (_, head, _) in enumerate(srcs):
                 if np.isfinite(out.q[k, 0]):
                     self._euler.header = header_message(head)
-                    set_vector3(self._euler.vector, out.euler[k])
+                    set_vector3(self._euler.vector, euler[k])
                     self.pub_euler.publish(self._euler)
         if out.nav is not None:
             self._publish_odom(srcs, bodies[:, cdr.IMU_RATE], out)
@@ -352,29 +394,20 @@ class AlignmentShell:
         return imu_head[:end] + rest
 
     def _publish_diagnostics(self):
-        session = self.session
-        imu_age = None
-        if self._last_imu_wall is not None:
-            imu_age = time.monotonic() - self._last_imu_wall
-        imu_counts, gnss_counts = session.input_counts()
-        values = {f'imu_{k}': v for k, v in imu_counts.items()}
-        values.update({f'gnss_input_{k}': v for k, v in gnss_counts.items()})
-        values.update({f'{k}_count': v for k, v in self.counts.items()})
-        values['imu_rejected_count'] = session.imu_input.rejected
-        if self.odom.origin is not None:
-            lat, lon, h = self.odom.origin          # full precision (1e-9 deg ~ 0.1 mm)
-            values.update({'odom_origin_lat_deg': f'{np.degrees(lat):.9f}',
-                           'odom_origin_lon_deg': f'{np.degrees(lon):.9f}',
-                           'odom_origin_h_m': f'{h:.3f}'})
-        values['gnss_rejected_count'] = session.gnss_input.rejected
         pipe = self.pipeline
-        conditions = pipe.conditions() + [(1, w) for w in pipe.warnings]
-        st = alignment_status(f'{self.get_name()}: alignment', self.p['imu_frame_id'] or 'imu',
-                              pipe.status(), self.p['diagnostic_period'],
-                              self.p['coarse_duration'], imu_age, self._period_imu,
-                              self.faults.lines(), conditions, self._events, values)
+        s = pipe.status()
+        state = self._update_typed(s)
+        self.notes.read(pipe.warnings)
+        values = input_values(self.session, self.counts, self.odom)
+        values.update(callback_error_count=self.errors.count, notes='; '.join(pipe.warnings),
+                      last_restart=self._last_restart)
+        st = alignment_status(f'{self.get_fully_qualified_name()}: alignment',
+                              self.p['imu_frame_id'] or 'imu', s, state,
+                              self.p['diagnostic_period'], self.p['coarse_duration'],
+                              self._imu_age(), self._period_imu, self.faults.lines(),
+                              self.errors.lines() + pipe.conditions(), self.notes.current(),
+                              values)
         self._period_imu = [0, 0]
-        self._events = []
         arr = DiagnosticArray()
         arr.header.stamp = self.get_clock().now().to_msg()
         arr.status = [st]
@@ -390,6 +423,7 @@ class AlignmentNode(AlignmentShell, Node):
         self._start_session()
         self._subscribe()
         self._create_outputs(self.create_publisher)
+        self._update_typed()                # the typed status once at start
         self._log_start()
 
 

@@ -1,18 +1,64 @@
 """The alignment node's /diagnostics status and its rate-limited input-fault log.
 
 Follows diagnostic_updater's conventions (not available as a Python package here):
-one DiagnosticStatus named ``<node>: alignment`` per period, its level the worst of
-the period, its message the conditions joined by ``'; '``, its values the pipeline's
-key figures and the input counts as KeyValues.
+one DiagnosticStatus named ``<node's fully qualified name>: alignment`` per period
+(``/robot1/alignment_node: alignment``), its level the worst of the period, its message
+the conditions joined by ``'; '`` and cut to :data:`MESSAGE_MAX` characters (angles in
+degrees), its values the pipeline's key figures, the input counts and the message's
+untruncated items (``details``) as KeyValues. A pipeline note or a restart is in the
+message for :data:`NOTE_HOLD_S` after it happened (:class:`RecentNotes`), then only in
+the values (``notes``, ``last_restart``).
 """
+import math
 import time
+import traceback
 from collections import Counter
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
+from .status import NO_IMU, imu_stopped
+from ..units import DEG
+
 #: each input-fault reason is logged at most once per this many seconds (wall time)
 LOG_PERIOD_S = 5.0
+#: the longest /diagnostics message, characters (the rest: the value ``details``)
+MESSAGE_MAX = 200
+_CUT = ' [...]'
+#: a pipeline note or a restart stays in the message this long (wall time, s), at least
+#: for the period it happened in
+NOTE_HOLD_S = 3.0
+#: a 1-sigma at least this is an unknown angle's (sqrt(pi^2 / 3) rad, less round-off), deg
+UNKNOWN_SIGMA_DEG = 0.999 * math.pi / math.sqrt(3.0) / DEG
+
+
+class RecentNotes:
+    """Texts shown in the message for :data:`NOTE_HOLD_S` after they appeared (once at least)."""
+
+    def __init__(self):
+        self._source = None         # the list last read (a pipeline's warnings)
+        self._seen = 0
+        self._held = []             # [wall time, text, shown]
+
+    def add(self, texts, now=None):
+        """Take ``texts`` as new (the restarts of the period)."""
+        now = time.monotonic() if now is None else now
+        self._held.extend([now, t, False] for t in texts)
+
+    def read(self, source, now=None):
+        """Take what was appended to list ``source`` since the last call (a new list: all)."""
+        if source is not self._source:
+            self._source, self._seen = source, 0
+        self.add(source[self._seen:], now)
+        self._seen = len(source)
+
+    def current(self, now=None):
+        """Return the texts to show now, oldest first; each is shown once at least."""
+        now = time.monotonic() if now is None else now
+        self._held = [h for h in self._held if not h[2] or now - h[0] < NOTE_HOLD_S]
+        for h in self._held:
+            h[2] = True
+        return [h[1] for h in self._held]
 
 
 class FaultLog:
@@ -45,48 +91,74 @@ class FaultLog:
         return out
 
 
-def alignment_status(name, hardware_id, s, period, coarse_duration, imu_age, imu_period,
-                     faults, conditions, events, values):
+def alignment_status(name, hardware_id, s, state, period, coarse_duration, imu_age, imu_period,
+                     faults, conditions, notes, values):
     """Build the DiagnosticStatus.
 
-    ``s`` the pipeline status; ``imu_age`` seconds since the last IMU message (None
-    before the first); ``imu_period`` (received, accepted) IMU messages of the period;
-    ``faults`` text lines; ``conditions`` ``[(level, text)]`` (1 warn, 2 error);
-    ``events`` the period's restarts (the last is shown); ``values`` extra KeyValues.
+    ``s`` the pipeline status; ``state`` the published typed state
+    (:func:`~.status.typed_state`: its phase and reason are the status's); ``imu_age``
+    seconds since the last IMU message (None before the first); ``imu_period`` (received,
+    accepted) IMU messages of the period; ``faults`` text lines; ``conditions``
+    ``[(level, text)]`` (1 warn, 2 error); ``notes`` the restarts and the pipeline's notes
+    to show (:class:`RecentNotes`); ``values`` extra KeyValues.
+
+    The message is at most :data:`MESSAGE_MAX` characters (:func:`cap_message`); the
+    untruncated items are the value ``details``.
     """
     st = DiagnosticStatus(name=name, hardware_id=hardware_id)
-    phase = s['phase']
+    phase, reason = state['phase'], state['reason']
     level, msgs = DiagnosticStatus.OK, []
-    if phase == 'waiting':
+    if s['phase'] == 'waiting':
         level = DiagnosticStatus.WARN
         msgs.append('waiting for IMU data on imu/data_raw')
     elif phase == 'coarse':
         msgs.append(f"coarse alignment {s['elapsed_s']:.0f}/{coarse_duration:.0f} s")
     else:
-        msgs.append(f"{phase}: 1-sigma roll {s['sigma_roll_deg'] * 60:.2f}', pitch "
-                    f"{s['sigma_pitch_deg'] * 60:.2f}', yaw {s['sigma_yaw_deg'] * 60:.2f}'")
-    if imu_age is not None and imu_age > max(2.0, 3 * period):
+        head = f'{phase}, {reason}' if reason and reason != NO_IMU else phase
+        sig = [_deg(s['sigma_roll_deg']), _deg(s['sigma_pitch_deg']),
+               _deg(s['sigma_yaw_deg'], s.get('heading_observable') is False)]
+        msgs.append(f'{head}: 1-sigma roll {sig[0]}, pitch {sig[1]}, yaw {sig[2]} deg')
+        if 'unknown' in sig:        # a condition that holds: WARN for as long as it holds
+            level = DiagnosticStatus.WARN
+    if imu_age is not None and imu_stopped(imu_age, period):
         level = DiagnosticStatus.ERROR
         msgs.insert(0, f'no IMU data for {imu_age:.1f} s')
     received, accepted = imu_period
     if received and not accepted:
         level = DiagnosticStatus.ERROR
         msgs.insert(0, f'none of the {received} IMU messages of the last {period:g} s was usable')
-    for line in faults:
-        level = max(level, DiagnosticStatus.WARN)
-        msgs.append(line)
     for lvl, text in conditions:
         level = max(level, DiagnosticStatus.ERROR if lvl >= 2 else DiagnosticStatus.WARN)
         msgs.append(text)
-    if events:
+    for text in notes:
         level = max(level, DiagnosticStatus.WARN)
-        msgs.append(events[-1])
+        msgs.append(text)
+    for line in faults:
+        level = max(level, DiagnosticStatus.WARN)
+        msgs.append(line)
     st.level = level
-    st.message = '; '.join(msgs)
+    st.message = cap_message(msgs)
     all_values = dict(s)
     all_values.update(values)
+    all_values.update(phase=phase, reason=reason, pipeline_phase=s['phase'],
+                      details=' | '.join(msgs))
     st.values = [KeyValue(key=k, value=_fmt(v)) for k, v in all_values.items()]
     return st
+
+
+def cap_message(items, limit=MESSAGE_MAX):
+    """Join ``items`` with ``'; '``; cut to ``limit`` characters, saying so, when longer."""
+    text = '; '.join(items)
+    if len(text) <= limit:
+        return text
+    return text[:limit - len(_CUT)].rstrip('; ,') + _CUT
+
+
+def _deg(sigma_deg, unknown=False):
+    """Format a 1-sigma in degrees, three significant digits (``unknown``: an unknown angle)."""
+    if unknown or sigma_deg >= UNKNOWN_SIGMA_DEG:
+        return 'unknown'
+    return f'{sigma_deg:.3g}'
 
 
 def _fmt(v):
@@ -95,3 +167,52 @@ def _fmt(v):
     if isinstance(v, (list, tuple, np.ndarray)):
         return ' '.join(_fmt(float(x)) for x in v)
     return str(v)
+
+
+def input_values(session, counts, odom):
+    """Return the node's KeyValues: input counts, rejections, the ``~/odom`` origin."""
+    imu_counts, gnss_counts = session.input_counts()
+    values = {f'imu_{k}': v for k, v in imu_counts.items()}
+    values.update({f'gnss_input_{k}': v for k, v in gnss_counts.items()})
+    values.update({f'{k}_count': v for k, v in counts.items()})
+    values['imu_rejected_count'] = session.imu_input.rejected
+    if odom.origin is not None:
+        lat, lon, h = odom.origin          # full precision (1e-9 deg ~ 0.1 mm)
+        values.update({'odom_origin_lat_deg': f'{np.degrees(lat):.9f}',
+                       'odom_origin_lon_deg': f'{np.degrees(lon):.9f}',
+                       'odom_origin_h_m': f'{h:.3f}'})
+    values['gnss_rejected_count'] = session.gnss_input.rejected
+    return values
+
+
+class CallbackErrors:
+    """Exceptions raised in the node's callbacks: logged, counted, said on /diagnostics.
+
+    Each is logged at ERROR with its traceback, at most once per :data:`LOG_PERIOD_S` for
+    the same text (a repeat within that is counted only).
+    """
+
+    def __init__(self, logger):
+        self.logger = logger
+        #: exceptions since the node started
+        self.count = 0
+        self._period = []
+        self._logged = {}             # text -> wall time of its last log line
+
+    def add(self, exc):
+        """Log and count ``exc``; return its one-line text."""
+        text = f'{type(exc).__name__}: {exc}'
+        self.count += 1
+        self._period.append(text)
+        now = time.monotonic()
+        if now - self._logged.get(text, -math.inf) >= LOG_PERIOD_S:
+            self._logged[text] = now
+            trace = ''.join(traceback.format_exception(exc)).rstrip()
+            self.logger.error(f'exception in a callback; the alignment restarts:\n{trace}')
+        return text
+
+    def lines(self):
+        """Return the period's exceptions as ERROR conditions ``[(2, text)]`` and forget them."""
+        out = [(2, f'exception in a callback ({t})') for t in self._period]
+        self._period = []
+        return out

@@ -1,12 +1,15 @@
 """Run loop of the executables, and the matching way to stop them as child processes.
 
-``run``: spin, clean exit on Ctrl-C, one-line errors. ``stop_processes``: what the
-demo, the tests and the benchmarks use to end the nodes they started.
+``run``: build the node, spin it (:func:`spin`), clean exit on Ctrl-C, one-line errors
+for what construction refuses. ``spin``: the loop, where an exception raised in a callback
+is handed to the node instead of ending the process. ``stop_processes``: what the demo,
+the tests and the benchmarks use to end the nodes they started.
 """
 import os
 import signal
 import subprocess
 import sys
+import traceback
 
 import rclpy
 from rclpy.exceptions import ParameterException
@@ -16,33 +19,68 @@ from rclpy.executors import ExternalShutdownException
 def run(make_node, name, make_executor=None, done=lambda node: False, args=None):
     """Create a node with ``make_node()``, spin it until shutdown or ``done(node)``.
 
-    Invalid parameters (``ValueError`` from the node, rclpy's ``ParameterException`` for a
-    value outside a declared range) end with one line on stderr
-    and exit code 2; SIGINT ends with exit code 0. Returns the exit code.
+    Invalid parameters at construction (``ValueError`` from the node, rclpy's
+    ``ParameterException`` for a value outside a declared range) end with one line on
+    stderr and exit code 2. Once the node is built, an exception in a callback does not
+    end the process (:func:`spin`). SIGINT ends with exit code 0. Returns the exit code.
     """
     rclpy.init(args=args)
     node = None
     try:
-        node = make_node()
+        try:
+            node = make_node()
+        except (ValueError, ParameterException) as exc:
+            # ParameterException: a start-up value outside a declared range (rclpy refuses it)
+            print(f'{name}: {exc}', file=sys.stderr)
+            return 2
         if make_executor is None:
             from rclpy.executors import SingleThreadedExecutor
             executor = SingleThreadedExecutor()
         else:
             executor = make_executor()
         executor.add_node(node)
-        while rclpy.ok() and not done(node):
-            executor.spin_once(timeout_sec=0.1)
+        spin(node, executor, done)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except (ValueError, ParameterException) as exc:
-        # ParameterException: a start-up value outside a declared range (rclpy refuses it)
-        print(f'{name}: {exc}', file=sys.stderr)
-        return 2
     finally:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def spin(node, executor, done=lambda node: False, timeout_sec=0.1):
+    """Spin ``executor`` while rclpy is ok and not ``done(node)``; no callback ends it.
+
+    The executors re-raise an exception of a callback from ``spin_once`` (rclpy's
+    EventsExecutor also logs it at FATAL first). It goes to ``node.on_callback_error(exc)``
+    when the node has that hook (the alignment node logs it, counts it and restarts its
+    alignment), else it is logged at ERROR with its traceback; either way spinning goes
+    on. Ctrl-C and an external shutdown still end the loop (they propagate).
+    """
+    context = executor.context
+    while context.ok() and not done(node):
+        try:
+            executor.spin_once(timeout_sec=timeout_sec)
+        except (KeyboardInterrupt, ExternalShutdownException):
+            raise
+        except Exception as exc:          # noqa: B902 - a callback's error, whatever it is
+            if not context.ok():
+                break
+            _hand_over(node, exc)
+
+
+def _hand_over(node, exc):
+    """Give a callback's exception to ``node.on_callback_error``, or log it."""
+    hook = getattr(node, 'on_callback_error', None)
+    try:
+        if hook is not None:
+            hook(exc)
+            return
+    except Exception as inner:            # noqa: B902 - the hook itself failed
+        exc = inner
+    text = ''.join(traceback.format_exception(exc))
+    node.get_logger().error(f'exception in a callback (the node goes on):\n{text}')
 
 
 def stop_processes(procs, timeout=10.0):
