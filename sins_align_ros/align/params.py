@@ -3,6 +3,7 @@
 No ROS here: :class:`Param` is plain data; ``ros/params.py`` turns it into
 rcl descriptors, the replay tool reads YAML and ``--set`` overrides with it.
 """
+import difflib
 import math
 from dataclasses import dataclass
 
@@ -34,7 +35,9 @@ class Param:
 
     ``choices`` restricts a string; ``lo``/``hi`` a number, or each element of a
     double array (a tuple default: its length is the array's; inclusive);
-    ``read_only`` parameters can only be set at start-up.
+    ``read_only`` parameters can only be set at start-up; ``unset``: NaN (``.nan`` in
+    YAML and on the command line) is accepted as "not set" beside the range (the default
+    of such a parameter is NaN).
     """
 
     name: str
@@ -44,6 +47,7 @@ class Param:
     hi: float = None
     choices: tuple = None
     read_only: bool = False
+    unset: bool = False
 
     @property
     def is_array(self):
@@ -86,6 +90,8 @@ class Param:
                     f'expected {type(self.default).__name__}')
         if self.choices and value not in self.choices:
             return f'{self.name}={value!r} is not one of {", ".join(self.choices)}'
+        if self.unset and isinstance(value, float) and math.isnan(value):
+            return None
         if self.lo is not None and not (self.lo <= value <= self.hi):
             return f'{self.name}={value!r} is outside [{self.lo}, {self.hi}]'
         return None
@@ -105,7 +111,10 @@ ALIGNMENT_PARAMS = (
     Param('coarse_method', 'auto', 'coarse alignment: analytic (still base), inertial_frame '
           '(sway, disturbance) or auto (picks by detecting motion)', choices=COARSE_METHODS),
     Param('coarse_duration', 60.0, 'coarse alignment time, s', 1.0, 3600.0),
-    Param('initial_latitude_deg', 0.0, 'latitude used without a GNSS fix, deg', -89.0, 89.0),
+    Param('initial_latitude_deg', math.nan, 'latitude used without a GNSS fix, deg; .nan: not '
+          'set: at rest the gyros estimate it where they see the Earth rate clearly (a '
+          'navigation-grade IMU), else it is unknown, 0 is used and the heading is published '
+          'as unknown (docs/alignment_node.md)', -89.0, 89.0, unset=True),
     Param('initial_longitude_deg', 0.0, 'longitude used without a GNSS fix, deg',
           -180.0, 180.0),
     Param('initial_height_m', 0.0, 'height used without a GNSS fix, m', -1000.0, 50000.0),
@@ -257,6 +266,23 @@ _BY_NAME = {p.name: p for p in ALIGNMENT_PARAMS}
 _NODE_BY_NAME = {p.name: p for p in NODE_PARAMS}
 
 
+def closest(name, names):
+    """Return the name in ``names`` closest to ``name`` (difflib), or None if none is close."""
+    found = difflib.get_close_matches(name, list(names), n=1, cutoff=0.6)
+    return found[0] if found else None
+
+
+def unknown_message(name, params):
+    """Say that ``name`` is not one of ``params``, with the closest declared name if any."""
+    near = closest(name, [p.name for p in params])
+    return f'unknown parameter {name!r}' + (f' (did you mean {near!r}?)' if near else '')
+
+
+def is_unset(value):
+    """Tell whether a float parameter ``value`` is NaN, "not set" (:attr:`Param.unset`)."""
+    return isinstance(value, float) and math.isnan(value)
+
+
 def defaults():
     """Return the default values of all alignment parameters, name -> value."""
     return {p.name: p.default for p in ALIGNMENT_PARAMS}
@@ -271,7 +297,7 @@ def validate(values):
     for k, v in values.items():
         p = _BY_NAME.get(k)
         if p is None:
-            raise ValueError(f'unknown parameter {k!r}')
+            raise ValueError(unknown_message(k, ALIGNMENT_PARAMS + NODE_PARAMS))
         err = p.check(v)
         if err:
             raise ValueError(err)
@@ -299,7 +325,7 @@ def parse_value(name, text):
     """Convert ``--set name=value`` text to the parameter's type (the value is read as YAML)."""
     p = _BY_NAME.get(name) or _NODE_BY_NAME.get(name)
     if p is None:
-        raise ValueError(f'unknown parameter {name!r}')
+        raise ValueError(unknown_message(name, ALIGNMENT_PARAMS + NODE_PARAMS))
     if isinstance(p.default, str):
         return text
     try:
@@ -326,16 +352,28 @@ def load_yaml(path, node_name='alignment_node'):
 
     Accepts the ROS parameter-file layout (``node: {ros__parameters: {...}}``,
     also with ``/**`` as node name) or a flat mapping of names to values.
+    Raises ``ValueError`` with one line for a file that cannot be read, is not YAML,
+    or holds no entry for ``node_name`` (naming the entries it holds).
     """
-    with open(path) as f:
-        data = yaml.safe_load(f) or {}
+    try:
+        with open(path) as f:
+            data = yaml.safe_load(f) or {}
+    except OSError as exc:
+        raise ValueError(f'params file {path}: cannot open it ({exc.strerror})') from None
+    except yaml.YAMLError as exc:
+        where = getattr(exc, 'problem_mark', None)
+        at = f' at line {where.line + 1}' if where is not None else ''
+        what = getattr(exc, 'problem', None) or 'not valid YAML'
+        raise ValueError(f'params file {path}: not valid YAML{at}: {what}') from None
     if not isinstance(data, dict):
         raise ValueError(f'{path}: expected a mapping of parameters')
     for key in (node_name, '/' + node_name, '/**'):
         if isinstance(data.get(key), dict) and 'ros__parameters' in data[key]:
             return dict(data[key]['ros__parameters'])
-    if any(isinstance(v, dict) and 'ros__parameters' in v for v in data.values()):
-        raise ValueError(f'{path}: no parameters for {node_name}')
+    nodes = [k for k, v in data.items() if isinstance(v, dict) and 'ros__parameters' in v]
+    if nodes:
+        raise ValueError(f'params file {path}: no parameters for {node_name} (its node names: '
+                         f'{", ".join(map(str, nodes))}; use {node_name} or /**)')
     return dict(data)
 
 
@@ -350,5 +388,8 @@ def markdown_table(params):
         else:
             rng = ''
         default = list(p.default) if p.is_array else p.default
+        if p.unset:
+            default = '.nan'
+            rng += ' or `.nan`: not set'
         rows.append(f'| `{p.name}` | `{default}` | {rng} | {p.description} |')
     return '\n'.join(rows)
