@@ -256,3 +256,39 @@ def test_the_lever_arm_grid_scores_equal_the_fit_at_each_heading():
     for rows in (100_000, 500):                          # one chunk, several chunks
         np.testing.assert_allclose(ac._grid_scores(V, U_l, B0, grid, rows=rows), exact,
                                    rtol=1e-10)
+
+
+def test_latitude_not_set_is_estimated_from_the_earth_rate_and_used():
+    """No fix, initial_latitude_deg not set: sin L from the mean rate and specific force."""
+    pos = np.array([0.0, 108.0 * DEG, 0.0])           # what GnssBuffer.position gives
+    gnss = GnssBuffer()
+    assert not gnss.latitude_known(DEFAULTS)
+    c = check(still(seconds=120.0), pos, DEFAULTS, gnss=gnss)
+    lat, sigma = c.latitude
+    assert abs(lat - LAT) < 3.0 * sigma and sigma < 0.1 * DEG
+    assert pos[0] == lat and not c.latitude_unknown     # the stages after use it
+    assert c.widened == {} and c.heading_observable
+    assert any('estimated from the angle' in s for s in c.findings)
+
+
+def test_latitude_not_set_with_a_tactical_gyro_is_unknown_and_so_is_the_heading():
+    """1 deg/h gyro bias: the latitude to 4 deg only; not used, no gyro blame, heading
+    unknown for the latitude's sake (the gyro alone would find north)."""
+    from sins_align_ros.align.self_check import heading_warning
+    cfg = {**DEFAULTS, 'gyro_bias_dph': 1.0, 'gyro_arw_dpsh': 0.05}
+    pos = np.array([0.0, 108.0 * DEG, 0.0])
+    c = check(still(gyro_bias=(0.0, 0.5 * DPH, 0.0), arw=0.05 * DPSH), pos, cfg,
+              gnss=GnssBuffer())
+    assert c.latitude is None and c.latitude_unknown and pos[0] == 0.0
+    # hypot(1 deg/h, 0.05 deg/sqrt(h) / sqrt(60 s)) over the 15.04 deg/h Earth rate
+    want = math.degrees(math.hypot(1.0, 0.05 * math.sqrt(3600.0 / 60.0)) / (earth.OMEGA_IE / DPH))
+    assert c.figures["latitude_sigma_deg"] == pytest.approx(want, rel=1e-5)   # + accel tilt
+    assert 'gyro_bias_dph' not in c.widened and 'accel_bias_ug' not in c.widened
+    assert c.gyro_finds_north and not c.heading_observable
+    assert heading_warning(c, True, False).startswith('heading unobservable: the latitude is '
+                                                      'unknown')
+    assert any(s.startswith('latitude unknown') for s in c.findings)
+    # told the latitude, the same data find north
+    told = check(still(gyro_bias=(0.0, 0.5 * DPH, 0.0), arw=0.05 * DPSH), POS.copy(),
+                 {**cfg, 'initial_latitude_deg': 34.0}, gnss=GnssBuffer())
+    assert told.heading_observable and told.latitude is None and not told.latitude_unknown

@@ -80,6 +80,11 @@ OUTLIER_SIGMAS = 5.0
 MAX_OUTLIER_SHARE = 0.2
 #: fewest gnss/vel messages in the window for the outlier test
 MIN_EPOCHS_SCREENED = 8
+#: the warning for a latitude not set, no fix, and no self-check to estimate it
+LATITUDE_UNSET = ('latitude unknown: initial_latitude_deg is not set, no GNSS fix came and '
+                  'sensor_self_check is off (which estimates it): 0 deg used, so the Earth '
+                  'rate model and the heading sigma are the equator\'s; set '
+                  'initial_latitude_deg')
 
 
 def coarse_sigma(noise, T, lat, moving, cap=30.0 * DEG):
@@ -130,11 +135,17 @@ def run(window, cfg, noise, position, gnss, t_now, aided, install=None):
 
     ``aided``: the fine filter is GNSS-aided; ``install`` the
     :class:`~.installation.Installation` (its lever arm). Returns ``(CoarseResult or None,
-    info, reason)``.
+    info, reason)``. With the latitude not set and no fix, the sensor self-check
+    estimates it or says it is unknown; with the self-check off, a warning here says
+    that 0 is used.
     """
     if aided:
-        return moving_base(window, cfg, noise, position, gnss, t_now, install)
-    return still_base(window, cfg, noise, position)
+        res, info, reason = moving_base(window, cfg, noise, position, gnss, t_now, install)
+    else:
+        res, info, reason = still_base(window, cfg, noise, position)
+    if res is not None and not cfg['sensor_self_check'] and not gnss.latitude_known(cfg):
+        res.warnings.append(LATITUDE_UNSET)
+    return res, info, reason
 
 
 def still_base(window, cfg, noise, position):

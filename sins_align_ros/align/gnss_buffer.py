@@ -146,7 +146,10 @@ class GnssBuffer:
         Stationary models: the median of the recent fixes, so that an outlier or a
         short jump does not set their latitude. Aided filters: the last fix (the
         filter's innovation gate judges the fixes that follow; ``aided``). Without a fix (or
-        with ``use_gnss_position`` off): the ``initial_*`` parameters.
+        with ``use_gnss_position`` off): the ``initial_*`` parameters; with
+        ``initial_latitude_deg`` not set (NaN) the latitude is 0 and the source
+        ``latitude_not_set``: the sensor self-check then estimates it from the gyros in
+        place, or says it is unknown (:mod:`.self_check`).
         """
         if cfg['use_gnss_position'] and self.recent_fixes:
             if aided:
@@ -158,7 +161,14 @@ class GnssBuffer:
             la, lo, h = (cfg['initial_latitude_deg'], cfg['initial_longitude_deg'],
                          cfg['initial_height_m'])
             src = 'parameters'
+            if not math.isfinite(la):
+                la, src = 0.0, 'latitude_not_set'
         return np.array([la * DEG, lo * DEG, h]), src
+
+    def latitude_known(self, cfg):
+        """Tell whether :meth:`position`'s latitude is known: a fix, or the parameter set."""
+        return bool(cfg['use_gnss_position'] and self.recent_fixes) or math.isfinite(
+            cfg['initial_latitude_deg'])
 
     def reported_over(self, t0, t1):
         """Return the reported east/north variances of the fixes and velocities in ``[t0, t1]``.

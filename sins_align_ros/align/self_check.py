@@ -70,6 +70,17 @@ the finding is reported:
 * **Heading observability**: a gyro whose bias sigma (after widening) is not small
   against the horizontal Earth rate cannot find north at rest; the result says so
   and the stationary filters publish the heading as unknown.
+* **Latitude** (``initial_latitude_deg`` not set and no GNSS fix): at rest the mean rate is
+  the Earth rate, at the latitude's angle from the equatorial plane: the angle between
+  the mean rate and the mean specific force (up) gives ``sin L = (w . f) / (|w| |f|)``,
+  with a 1-sigma of the gyro bias and noise over the Earth rate. Where the gyro sees the
+  Earth rate clearly (its magnitude as modelled, that sigma at most
+  :data:`LATITUDE_MAX_SIGMA`: a navigation-grade IMU) the estimate replaces the
+  position's latitude (in place: the coarse and fine stages use it) and a warning says
+  so. Elsewhere (a lower grade, a swaying or moving base) the latitude is unknown: 0
+  is used, the finding says so, the bias bounds compare only what needs no latitude
+  (the rate's magnitude, gravity's range) and the heading is published as unknown (its
+  sigma grows as 1 / cos L with a latitude nobody knows).
 
 Not in the seeds; it is what makes the published sigma a claim that holds with a
 wrong or default sensor model.
@@ -81,7 +92,7 @@ import numpy as np
 
 from ..nav import earth
 from ..nav.coarse import arm_velocity_b0, detect_motion, velocity_integral_b0
-from ..units import DPH, DPSH, UG
+from ..units import DEG, DPH, DPSH, UG
 from .arm_check import fit_lever_arm, levelling
 from .factory import gnss_sigma, uses_reported_covariance
 
@@ -123,6 +134,15 @@ DIFF_ORDER = 3
 ARM_CHI2 = 50.0
 #: a gyro bias sigma above this fraction of the horizontal Earth rate: no heading at rest
 HEADING_BIAS_FRACTION = 0.5
+#: the latitude estimated at rest is used when its 1-sigma is at most this, rad (2 deg: a
+#: gyro bias of 0.5 deg/h against the 15.04 deg/h Earth rate; tactical and lower grades
+#: need initial_latitude_deg or a GNSS fix)
+LATITUDE_MAX_SIGMA = 2.0 * DEG
+#: the heading warning when the latitude is unknown
+NO_HEADING_LATITUDE = ('heading unobservable: the latitude is unknown (initial_latitude_deg '
+                       'not set, no GNSS fix, and the gyros cannot estimate it), so north '
+                       'cannot be found at rest; heading published as unknown (set '
+                       'initial_latitude_deg, or give a GNSS fix or an external heading)')
 #: the reason given when the heading cannot be found at rest
 NO_HEADING = ('heading unobservable: the gyro bias is not small against the horizontal Earth '
               'rate, so this IMU cannot find north at rest (needs motion with GNSS aiding, '
@@ -138,9 +158,15 @@ def heading_warning(check, at_rest, aided):
 
     Only where the gyro would have to find north: at rest, or for a stationary filter.
     ``aided``: a GNSS-aided filter, whose heading motion may still make observable later.
+    With the latitude unknown the warning says so, not that the gyro is too poor (unless
+    it is that too).
     """
     if check.heading_observable or not (at_rest or not aided):
         return None
+    if check.latitude_unknown:
+        return NO_HEADING_LATITUDE + ('' if check.gyro_finds_north else
+                                      '; the gyro bias is not small against the Earth rate '
+                                      'either')
     return NO_HEADING_YET if aided else NO_HEADING
 
 
@@ -154,7 +180,10 @@ class SelfCheck:
     says the base moves (as given); ``still``: the window shows no motion either;
     ``heading_observable``: the gyro can find north at rest; ``mounting_doubt``: why the
     vehicle frame cannot be the told one (the mounting check; '' when it can be);
-    ``figures``: the measured bounds for diagnostics.
+    ``latitude``: ``(lat, sigma)`` rad estimated from the gyros when the latitude was not
+    set (None otherwise); ``latitude_unknown``: it was not set and could not be estimated
+    (0 used, heading unobservable); ``gyro_finds_north``: the gyro bias alone allows north
+    at rest; ``figures``: the measured bounds for diagnostics.
     """
 
     widened: dict = field(default_factory=dict)
@@ -164,6 +193,9 @@ class SelfCheck:
     still: bool = True
     heading_observable: bool = True
     mounting_doubt: str = ''
+    latitude: tuple = None
+    latitude_unknown: bool = False
+    gyro_finds_north: bool = True
     figures: dict = field(default_factory=dict)
 
 
@@ -411,6 +443,9 @@ def check(window, position, cfg, at_rest=True, gnss=None):
     speed; an IMU cannot see a constant velocity, and on a moving base the transport
     rate and Coriolis terms would read as biases); ``gnss``: the
     :class:`~.gnss_buffer.GnssBuffer` whose fixes in the window are checked (or None).
+    Where the latitude is not known (``gnss`` given and ``initial_latitude_deg`` not set,
+    no fix: ``GnssBuffer.latitude_known``) and the gyros estimate it, the estimate is written
+    into ``position[0]`` (a numpy array) for the stages that follow.
     Returns a :class:`SelfCheck`.
     """
     tt, dth, dvv, dts = window
@@ -418,6 +453,7 @@ def check(window, position, cfg, at_rest=True, gnss=None):
     T = float(np.sum(dts))
     lat, _, h = position
     out = SelfCheck()
+    lat_known = gnss is None or gnss.latitude_known(cfg)
     w = dth / dts[:, None]
     f = dvv / dts[:, None]
     if gnss is not None:
@@ -433,6 +469,8 @@ def check(window, position, cfg, at_rest=True, gnss=None):
         _noise(out, cfg, arw, min(difference_density(f, dt), vrw_cap), moving=True)
         out.note = ('bias bounds skipped: GNSS shows the base moving, or a moving-base filter '
                     'runs without GNSS (white noise from third differences of the samples)')
+        if not lat_known:
+            _latitude_unknown(out, 'the base moves')
         return _heading(out, cfg, lat)
     # where sway makes the 1-s scatter disagree with the sample-level one, the third
     # differences still bound the white noise (a swaying ship at the quay), unless the
@@ -450,10 +488,15 @@ def check(window, position, cfg, at_rest=True, gnss=None):
     out.still = not detect_motion(dth, dvv, dts, arw, vrw)[0]
     _base_velocity(out, cfg, dth, dvv, dts)
     if out.still:
-        _biases(out, dth.sum(axis=0) / T, dvv.sum(axis=0) / T, T, lat, h, cfg, arw, vrw)
+        lat = _biases(out, dth.sum(axis=0) / T, dvv.sum(axis=0) / T, T,
+                      lat if lat_known else None, h, cfg, arw, vrw)
+        if out.latitude is not None and isinstance(position, np.ndarray):
+            position[0] = lat
     else:
         out.note = '; '.join(n for n in (out.note, 'bias bounds skipped: the base moves '
                                          '(sways) in the coarse window') if n)
+        if not lat_known:
+            _latitude_unknown(out, 'the base sways or moves in the coarse window')
     return _heading(out, cfg, lat)
 
 
@@ -558,10 +601,40 @@ def _mounting(out, cfg, f_b):
 
 
 def _heading(out, cfg, lat):
-    """Set ``out.heading_observable`` from the (widened) gyro bias sigma; return ``out``."""
+    """Set ``out.heading_observable`` from the (widened) gyro bias sigma; return ``out``.
+
+    An unknown latitude makes the heading unobservable as well.
+    """
     gyro_sigma = _gyro_bias_sigma(out, cfg)
-    out.heading_observable = gyro_sigma <= HEADING_BIAS_FRACTION * earth.OMEGA_IE * math.cos(lat)
+    out.gyro_finds_north = bool(
+        gyro_sigma <= HEADING_BIAS_FRACTION * earth.OMEGA_IE * math.cos(lat))
+    out.heading_observable = out.gyro_finds_north and not out.latitude_unknown
     return out
+
+
+def _latitude_unknown(out, why):
+    """Record that the latitude is unknown (not set, no fix, not estimated) and ``why``."""
+    out.latitude_unknown = True
+    out.findings.append(f'latitude unknown: initial_latitude_deg is not set and no GNSS fix '
+                        f'came, and the gyros cannot estimate it ({why}): 0 deg used, heading '
+                        'published as unknown; set initial_latitude_deg')
+
+
+def estimate_latitude(w_b, f_b, T, gyro_sigma, arw, accel_sigma):
+    """Latitude (rad) and its 1-sigma from the window means ``w_b``, ``f_b`` (3,) at rest.
+
+    ``sin L = (w . f) / (|w| |f|)``, taken as ``atan2(w_up, w_h)``. The sigma: the gyro
+    bias ``gyro_sigma`` and the mean noise ``arw / sqrt(T)`` (rad/s) move the rate by that
+    much across its direction, and an accelerometer bias ``accel_sigma`` tilts the
+    vertical by ``accel_sigma / g``.
+    """
+    f_norm = float(np.linalg.norm(f_b))
+    u = f_b / f_norm
+    w_up = float(w_b @ u)
+    w_h = float(np.linalg.norm(w_b - w_up * u))
+    lat = math.atan2(w_up, w_h)
+    sigma = math.sqrt(gyro_sigma ** 2 + arw ** 2 / T) / earth.OMEGA_IE
+    return lat, math.hypot(sigma, accel_sigma / f_norm)
 
 
 def _raise(out, cfg, name, value, unit):
@@ -574,30 +647,78 @@ def _raise(out, cfg, name, value, unit):
 
 
 def _biases(out, w_b, f_b, T, lat, h, cfg, arw, vrw):
-    """Bias bounds from the window means ``w_b``, ``f_b`` (3,) widen ``out``'s model."""
-    g = earth.gravity(lat, h)
+    """Bias bounds from the window means ``w_b``, ``f_b`` (3,) widen ``out``'s model.
+
+    ``lat`` None: the latitude is not known; the gyro bound compares the rate's magnitude
+    only, the latitude is estimated (:func:`estimate_latitude`) and, where the gyros see
+    the Earth rate clearly, used; else it is unknown and the accelerometer bound
+    compares with gravity's range over all latitudes. Returns the latitude used (rad).
+    """
     f_norm = float(np.linalg.norm(f_b))
-    accel_bound = abs(f_norm - g)
-    accel_sigma = _model(out, cfg, 'accel_bias_ug') * UG
-    tol_a = 2.0 * accel_sigma + 3.0 * vrw / math.sqrt(T) + GRAVITY_TOL
-    _bound(out, 'accel_bias_ug', accel_bound / UG, tol_a / UG, accel_sigma / UG,
-           f'specific force {f_norm:.5g} m/s^2 at rest against gravity {g:.5g}: an '
-           f'accelerometer bias of at least {accel_bound / UG:.0f} ug')
     u = f_b / f_norm
     w_up = float(w_b @ u)
     w_h = float(np.linalg.norm(w_b - w_up * u))
-    bound = max(abs(w_up - earth.OMEGA_IE * math.sin(lat)),
-                abs(w_h - earth.OMEGA_IE * math.cos(lat)))
     gyro_sigma = _gyro_bias_sigma(out, cfg)
     tol_g = 2.0 * gyro_sigma + 3.0 * arw / math.sqrt(T) + RATE_TOL
-    _bound(out, 'gyro_bias_dph', bound / DPH, tol_g / DPH, gyro_sigma / DPH,
-           f'mean rate at rest differs from Earth rate by {bound / DPH:.3g} deg/h: a gyro '
-           'bias of at least that')
+    if lat is not None:
+        bound = max(abs(w_up - earth.OMEGA_IE * math.sin(lat)),
+                    abs(w_h - earth.OMEGA_IE * math.cos(lat)))
+        what = f'mean rate at rest differs from Earth rate by {bound / DPH:.3g} deg/h'
+    else:
+        bound = abs(math.hypot(w_up, w_h) - earth.OMEGA_IE)
+        what = (f'mean rate at rest is {math.hypot(w_up, w_h) / DPH:.3g} deg/h, Earth rate '
+                f'{earth.OMEGA_IE / DPH:.4g} deg/h (its direction not compared: latitude not '
+                'set)')
+    widened = _bound(out, 'gyro_bias_dph', bound / DPH, tol_g / DPH, gyro_sigma / DPH,
+                     f'{what}: a gyro bias of at least {bound / DPH:.3g} deg/h')
+    accel_sigma = _model(out, cfg, 'accel_bias_ug') * UG
+    if lat is None:
+        lat = _latitude(out, w_b, f_b, T, _gyro_bias_sigma(out, cfg), arw, accel_sigma,
+                        widened)
+    if out.latitude_unknown:
+        g_lo, g_hi = earth.gravity(0.0, h), earth.gravity(0.5 * math.pi, h)
+        g = min(max(f_norm, g_lo), g_hi)
+        against = f'gravity {g_lo:.5g}-{g_hi:.5g} (latitude unknown)'
+    else:
+        g = earth.gravity(lat, h)
+        against = f'gravity {g:.5g}'
+    accel_bound = abs(f_norm - g)
+    tol_a = 2.0 * accel_sigma + 3.0 * vrw / math.sqrt(T) + GRAVITY_TOL
+    _bound(out, 'accel_bias_ug', accel_bound / UG, tol_a / UG, accel_sigma / UG,
+           f'specific force {f_norm:.5g} m/s^2 at rest against {against}: an '
+           f'accelerometer bias of at least {accel_bound / UG:.0f} ug')
+    return lat
+
+
+def _latitude(out, w_b, f_b, T, gyro_sigma, arw, accel_sigma, rate_off):
+    """Estimate the latitude not set; use it where clear (module docstring). Returns rad.
+
+    ``rate_off``: the rate's magnitude contradicted the model (the gyro does not see the
+    Earth rate as modelled): no estimate is used then.
+    """
+    lat, sigma = estimate_latitude(w_b, f_b, T, gyro_sigma, arw, accel_sigma)
+    out.figures.update(latitude_estimate_deg=lat / DEG, latitude_sigma_deg=sigma / DEG)
+    if rate_off or not sigma <= LATITUDE_MAX_SIGMA:
+        why = ('its mean rate at rest is not the Earth rate' if rate_off else
+               f'{sigma / DEG:.3g} deg 1-sigma from a gyro bias of {gyro_sigma / DPH:.3g} deg/h')
+        _latitude_unknown(out, why)
+        return 0.0
+    out.latitude = (lat, sigma)
+    out.findings.append(f'latitude not set (initial_latitude_deg) and no GNSS fix: '
+                        f'{lat / DEG:.2f} +- {sigma / DEG:.2f} deg (1 sigma) estimated from the '
+                        'angle between the mean rate (Earth rate) and the mean specific force '
+                        'at rest, and used')
+    return lat
 
 
 def _bound(out, name, bound, tolerance, model, what):
-    """Record a bias ``bound`` on parameter ``name``; widen to it beyond ``tolerance``."""
+    """Record a bias ``bound`` on parameter ``name``; widen to it beyond ``tolerance``.
+
+    Returns True if it widened.
+    """
     out.figures[name.replace('_ug', '_bound_ug').replace('_dph', '_bound_dph')] = bound
     if bound > tolerance:
         out.widened[name] = bound
         out.findings.append(f'{what}, {model:.3g} in the model: {name} widened')
+        return True
+    return False
