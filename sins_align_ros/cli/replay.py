@@ -6,8 +6,11 @@
 INPUT is a rosbag2 (folder, .mcap or .db3) with ``imu/data_raw`` (and optionally
 ``gnss/fix``, ``gnss/vel``, ``sim/truth``), or a PSINS ``.imu`` log. Parameters are the
 alignment node's (YAML in the ROS parameter-file layout or flat; ``--set``
-overrides). Errors end with one line on stderr and a non-zero exit code; what
-was computed before a fault in the input is still written.
+overrides; an unknown name is an error naming the closest parameter). A topic
+option given explicitly must name a topic of the bag (an error lists its topics);
+the defaults ``gnss/fix`` and ``gnss/vel`` may be absent (no GNSS). Errors end with
+one line on stderr and a non-zero exit code; what was computed before a fault in
+the input is still written.
 """
 import argparse
 import os
@@ -22,9 +25,9 @@ from ..align.pipeline import AlignmentPipeline
 from ..align.session import AlignmentSession
 from ..io.bag import BagError, read_bag
 from ..io.psins import PsinsFormatError, read_psins
-from ..io.report import plot_report
+from ..io.report import plot_report, truth_euler_at
 from ..io.results import write_csv
-from ..nav.frames import DEG, quat_to_euler, yaw_to_heading
+from ..nav.frames import DEG, yaw_to_heading
 
 _CHUNK = 2000
 
@@ -42,10 +45,13 @@ def _parser():
     ap.add_argument('--duration', type=float, default=None, metavar='SECONDS',
                     help='use only the first SECONDS of IMU data')
     ap.add_argument('--imu-topic', default='imu/data_raw')
-    ap.add_argument('--fix-topic', default='gnss/fix')
-    ap.add_argument('--vel-topic', default='gnss/vel',
-                    help='geometry_msgs/TwistWithCovarianceStamped ENU velocity (optional '
-                         'topic; empty string to ignore it)')
+    ap.add_argument('--fix-topic', default=None,
+                    help='sensor_msgs/NavSatFix (default gnss/fix, which may be absent; a '
+                         'topic given here must be in the bag)')
+    ap.add_argument('--vel-topic', default=None,
+                    help='geometry_msgs/TwistWithCovarianceStamped ENU velocity (default '
+                         'gnss/vel, which may be absent; a topic given here must be in the '
+                         'bag; empty string to ignore it)')
     ap.add_argument('--quiet', action='store_true')
     return ap
 
@@ -74,7 +80,7 @@ def replay_psins(path, values, log, duration=None):
     """Run a PSINS log; returns (Output, pipeline, None)."""
     rec = read_psins(path)
     v = dict(values)
-    if 'initial_latitude_deg' not in v:
+    if prm.is_unset(v.get('initial_latitude_deg', float('nan'))):
         v.update(initial_latitude_deg=float(rec.pos0[0] / DEG),
                  initial_longitude_deg=float(rec.pos0[1] / DEG),
                  initial_height_m=float(rec.pos0[2]))
@@ -97,8 +103,11 @@ def replay_bag(path, values, args, log, with_truth=True):
     through raises :class:`BagError` with ``.partial`` set to the (Output, pipeline,
     truth) computed from what came before it.
     """
-    rec = read_bag(path, args.imu_topic, args.fix_topic,
-                   truth_topic='sim/truth' if with_truth else None, vel_topic=args.vel_topic)
+    required = [k for k, given in (('fix', args.fix_topic), ('vel', args.vel_topic)) if given]
+    rec = read_bag(path, args.imu_topic, args.fix_topic or 'gnss/fix',
+                   truth_topic='sim/truth' if with_truth else None,
+                   vel_topic='gnss/vel' if args.vel_topic is None else args.vel_topic,
+                   required=required)
     session = AlignmentSession(values, block=_CHUNK)
     outs, truth, seen = [], [], set()
     n, events = len(rec.t), rec.events
@@ -167,13 +176,11 @@ def _first_seconds(rec, duration):
 
 
 def _truth_euler(out, truth):
-    """Truth Euler angles at the output stamps (nearest earlier-or-equal truth sample)."""
+    """Truth Euler angles at the output stamps, interpolated (``io.report.truth_euler_at``)."""
     if not truth:
         return None
-    tt = np.array([t for t, _ in truth])
-    qq = np.array([q for _, q in truth])
-    idx = np.clip(np.searchsorted(tt, out.t + 1e-9) - 1, 0, len(tt) - 1)
-    return quat_to_euler(qq[idx])
+    truth = sorted(truth, key=lambda item: item[0])
+    return truth_euler_at(out.t, [t for t, _ in truth], [q for _, q in truth])
 
 
 def _summary(out, pipe):

@@ -4,6 +4,7 @@ No ROS graph and no rclpy: messages are read and written as CDR with the
 ROS 2 Jazzy type store. Topics are matched by name or by name suffix, so
 namespaced recordings (``/ship/imu/data_raw``) work without options.
 """
+import difflib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -54,8 +55,11 @@ def _match(connections, name, msgtype, required):
              or c.topic.endswith('/' + name)]
     if not found:
         if required:
-            topics = ', '.join(sorted({c.topic for c in connections})) or 'none'
-            raise BagError(f'no topic {name!r} in the bag (topics: {topics})')
+            listed = sorted({c.topic for c in connections})
+            near = difflib.get_close_matches('/' + name.lstrip('/'), listed, n=1, cutoff=0.6)
+            raise BagError(f'no topic {name!r} in the bag'
+                           + (f' (did you mean {near[0]!r}?)' if near else '')
+                           + f'; its topics: {", ".join(listed) or "none"}')
         return []
     for c in found:
         if c.msgtype != msgtype:
@@ -80,25 +84,31 @@ def _open(path):
     return reader
 
 
-def _topics(connections, imu_topic, fix_topic, truth_topic, vel_topic):
-    """Return the connections ``(imu, fix, truth, vel)``; truth and vel None: not read."""
+def _topics(connections, imu_topic, fix_topic, truth_topic, vel_topic, required=()):
+    """Return the connections ``(imu, fix, truth, vel)``; truth and vel None: not read.
+
+    The IMU topic must be in the bag, and so must those of ``required`` ('fix', 'vel',
+    'truth': topics the user named): :class:`BagError` listing the bag's topics.
+    """
     c = connections
-    return (_match(c, imu_topic, IMU_TYPE, True), _match(c, fix_topic, FIX_TYPE, False),
-            _match(c, truth_topic, ODOM_TYPE, False) if truth_topic else [],
-            _match(c, vel_topic, VEL_TYPE, False) if vel_topic else [])
+    return (_match(c, imu_topic, IMU_TYPE, True),
+            _match(c, fix_topic, FIX_TYPE, 'fix' in required),
+            _match(c, truth_topic, ODOM_TYPE, 'truth' in required) if truth_topic else [],
+            _match(c, vel_topic, VEL_TYPE, 'vel' in required) if vel_topic else [])
 
 
 def iter_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='sim/truth',
-             vel_topic='gnss/vel'):
+             vel_topic='gnss/vel', required=()):
     """Yield :class:`BagEvent` in recording order from a rosbag2 folder or .mcap file.
 
-    Raises :class:`BagError` for a missing IMU topic, a wrong message type or an
-    unreadable bag (also part-way through: the caller keeps what came before).
+    Raises :class:`BagError` for a missing IMU topic (or a missing one of ``required``,
+    see :func:`_topics`), a wrong message type or an unreadable bag (also part-way
+    through: the caller keeps what came before).
     """
     reader = _open(path)
     try:
         imu, fix, truth, vel = _topics(reader.connections, imu_topic, fix_topic, truth_topic,
-                                       vel_topic)
+                                       vel_topic, required)
         try:
             for conn, _, raw in reader.messages(connections=imu + fix + truth + vel):
                 yield _event(reader, conn, raw)
@@ -130,7 +140,7 @@ class BagRecording:
 
 
 def read_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='sim/truth',
-             vel_topic='gnss/vel'):
+             vel_topic='gnss/vel', required=()):
     """Read a rosbag2 folder or .mcap file at once into a :class:`BagRecording`.
 
     The fast path of :func:`iter_bag` for replaying a whole recording: a single
@@ -138,7 +148,8 @@ def read_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='
     otherwise the raw messages are read with rosbags without deserialising, the IMU
     decoded in bulk (:mod:`.cdr`), the few GNSS and truth messages one by one with
     rosbags (as are IMU messages the bulk decoder does not take). ``truth_topic``
-    None: truth not read. The same :class:`BagError` rules as :func:`iter_bag`,
+    None: truth not read; ``required``: as :func:`iter_bag`'s. The same :class:`BagError`
+    rules as :func:`iter_bag`,
     except that a fault part-way through is returned in ``error`` with what was read
     before it.
     """
@@ -147,14 +158,14 @@ def read_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='
     db = db3_file(path)
     if db is not None:
         rec = read_db3(db, lambda topics: _topics(topics, imu_topic, fix_topic, truth_topic,
-                                                  vel_topic))
+                                                  vel_topic, required))
         if rec is not None:
             return rec
     reader = _open(path)
     raws, events, before, error = [], [], [], None
     try:
         imu, fix, truth, vel = _topics(reader.connections, imu_topic, fix_topic, truth_topic,
-                                       vel_topic)
+                                       vel_topic, required)
         imu_ids = {c.id for c in imu}
         try:
             for conn, _, raw in reader.messages(connections=imu + fix + truth + vel):

@@ -1,13 +1,50 @@
 """Report figure of a replay: roll, pitch, yaw (or their error against truth) with +/-3 sigma."""
 import numpy as np
 
-from ..nav.frames import euler_error
+from ..nav.frames import euler_error, quat_to_euler
+
+#: truth is not interpolated across an interval longer than this many times its median
+MAX_TRUTH_GAP = 5.0
+
+
+def truth_euler_at(t, t_truth, q_truth):
+    """Truth Euler angles (N, 3) rad at stamps ``t`` (N,), interpolated between the samples.
+
+    ``t_truth`` (M,) stamps and ``q_truth`` (M, 4) quaternions (x, y, z, w) of the truth
+    (the simulator's 10 Hz ``sim/truth``). The attitude at each stamp comes from a cubic
+    rotation spline through the truth samples (scipy's ``RotationSpline``: continuous
+    angular rate, no Euler wrap or gimbal issue). Taking the last earlier sample instead
+    put a 100 Hz row up to 0.1 s of a swaying ship's motion off (its roll error swung past
+    4'); a slerp between neighbours still leaves the sway's curvature, A w^2 dt^2 / 8
+    (0.5' on a 4 deg / 5 s roll at 10 Hz). Stamps outside the truth's span, or inside an
+    interval longer than :data:`MAX_TRUTH_GAP` times the median one, get NaN.
+    """
+    from scipy.spatial.transform import Rotation, RotationSpline
+
+    t = np.asarray(t, dtype=float)
+    tt = np.asarray(t_truth, dtype=float)
+    qq = np.asarray(q_truth, dtype=float).reshape(-1, 4)
+    out = np.full((len(t), 3), np.nan)
+    keep = np.r_[True, np.diff(tt) > 0.0] if len(tt) else np.zeros(0, bool)
+    tt, qq = tt[keep], qq[keep]
+    if len(tt) < 2:
+        at = np.abs(t - tt[0]) <= 1e-9 if len(tt) else np.zeros(len(t), bool)
+        out[at] = quat_to_euler(qq[0]) if len(tt) else np.nan
+        return out
+    k = np.clip(np.searchsorted(tt, t, side='right') - 1, 0, len(tt) - 2)
+    gap = MAX_TRUTH_GAP * float(np.median(np.diff(tt)))
+    ok = (t >= tt[0]) & (t <= tt[-1]) & (tt[k + 1] - tt[k] <= gap)
+    if np.any(ok):
+        q = RotationSpline(tt, Rotation.from_quat(qq))(t[ok]).as_quat()
+        out[ok] = quat_to_euler(q)
+    return out
 
 
 def plot_report(path, out, truth_euler=None, title=''):
     """Write a PNG with one panel per angle.
 
-    ``out`` is a pipeline Output; ``truth_euler`` (N, 3) rad, when given, turns the
+    ``out`` is a pipeline Output; ``truth_euler`` (N, 3) rad at the output stamps
+    (:func:`truth_euler_at`; NaN where unknown), when given, turns the
     panels into the error against truth with the +/-3 sigma band around zero;
     otherwise each panel shows the estimate with its +/-3 sigma band.
     """
