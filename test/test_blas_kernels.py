@@ -11,8 +11,9 @@ kernels), with one BLAS thread and then with two.
 Cost: each run of the files is ~105 s of one core; the two kernels run side by side (two
 processes, the machine's two cores), so the pair costs ~2 minutes of wall time. The test is
 ``exclusive`` (it loads both cores, and the paced node tests must not run beside it) and
-``slow``. The two-thread pair runs the files without their ``slow`` tests (the long accuracy
-runs are the same arithmetic as the short ones; the point there is the threads' split).
+``slow``. The two-thread pair runs the files without their ``slow`` tests (8 long accuracy
+runs, the same arithmetic as the short ones; the point there is the threads' split) and
+without test_kernels.py, whose child processes set one BLAS thread themselves.
 """
 import os
 from pathlib import Path
@@ -98,9 +99,9 @@ def _kernels():
     return chosen
 
 
-def _run_pair(kernels, threads, extra=()):
-    """Run FILES under each kernel at once (one process each); return their summaries."""
-    cmd = [sys.executable, '-m', 'pytest', *(f'test/{name}' for name in FILES), '-n0',
+def _run_pair(kernels, threads, files, extra=()):
+    """Run ``files`` under each kernel at once (one process each); return their summaries."""
+    cmd = [sys.executable, '-m', 'pytest', *(f'test/{name}' for name in files), '-n0',
            '-p', 'no:cacheprovider', '-q', '-o', 'addopts=', '--timeout=900', *extra]
     start = time.monotonic()
     procs = {k: subprocess.Popen(cmd, cwd=ROOT, env=_env(k, threads),
@@ -114,7 +115,7 @@ def _run_pair(kernels, threads, extra=()):
         counts = {word: int(n) for n, word in re.findall(r'(\d+) (passed|failed|error)', tail)}
         failed = re.findall(r'^(?:FAILED|ERROR) .*$', text, re.M)
         results[k] = (procs[k].returncode, counts, failed, tail)
-    print(f'{len(kernels)} runs of {len(FILES)} files, {threads} BLAS thread(s), '
+    print(f'{len(kernels)} runs of {len(files)} files, {threads} BLAS thread(s), '
           f'side by side: {elapsed:.0f} s')
     return results
 
@@ -128,15 +129,18 @@ def _check(results, min_passed):
 
 @pytest.mark.slow
 @pytest.mark.exclusive
+@pytest.mark.timeout(1800)
 def test_numerics_files_pass_under_other_blas_kernels_with_one_thread():
     """Every test of FILES passes under two other kernels, one BLAS thread each."""
     kernels = _kernels()
-    _check(_run_pair(kernels, 1), min_passed=150)
+    _check(_run_pair(kernels, 1, FILES), min_passed=150)
 
 
 @pytest.mark.slow
 @pytest.mark.exclusive
+@pytest.mark.timeout(1800)
 def test_numerics_files_pass_under_other_blas_kernels_with_two_threads():
     """The same without the ``slow`` tests, two BLAS threads (another split of the work)."""
     kernels = _kernels()
-    _check(_run_pair(kernels, 2, ('-m', 'not slow')), min_passed=120)
+    files = [name for name in FILES if name != 'test_kernels.py']
+    _check(_run_pair(kernels, 2, files, ('-m', 'not slow')), min_passed=120)
