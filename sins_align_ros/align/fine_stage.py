@@ -38,6 +38,13 @@ the GNSS velocity far from the vehicle's forward axis (:mod:`.sideslip`), the
 attitude is the IMU's, not the vehicle's: all three angles are published with the
 variance of an unknown angle and the stage is never ``aligned``.
 
+A still-base engine's zero-velocity innovations are watched through the whole stage
+(:mod:`.still_watch`): when they show the base moving, the zero-velocity filter stops
+(its last seconds undone), the attitude coasts on the gyros with a growing covariance and
+the phase is ``fine`` with the reason :data:`~.still_watch.MOVING_WITHOUT_GNSS`, until the
+IMU has shown rest for a whole coarse window. With GNSS fixes coming in, the stage ends
+instead, so that the pipeline's coarse stage hands over to a GNSS-aided filter.
+
 A filter failure (:class:`~.gnss_gate.FilterDiverged`) ends the stage: the methods
 return its reason and the pipeline restarts from coarse alignment.
 """
@@ -54,8 +61,14 @@ from .gnss_gate import FilterDiverged
 from .imu_input import intervals
 from .output import Rows, one_row
 from .sideslip import SideslipCheck
+from .still_watch import (MAX_RESUME_TILT, MOVING_WITHOUT_GNSS, ROLLBACK_S, MotionWatch,
+                          RestWindow)
+from ..units import DPH
 
 FINE, ALIGNED = 'fine', 'aligned'
+#: GNSS fixes this recent (s) make a still-base stage that finds its base moving end, so
+#: that a GNSS-aided filter takes over; older ones: it coasts
+GNSS_RECENT_S = 5.0
 #: variance of an angle known to be anywhere in (-pi, pi] (uniform): pi^2 / 3, rad^2
 HEADING_UNKNOWN_VAR = ANGLE_UNKNOWN_VAR
 
@@ -118,6 +131,15 @@ class FineStage(EpochUpdates):
         self.sideslip = (SideslipCheck(cfg['mounting_check_max_sideslip_deg'])
                          if cfg['sensor_self_check'] and not engine.restages else None)
         self._att_cov = None
+        #: the zero-velocity innovations' motion test of a still-base engine (or None),
+        #: the IMU samples while the base moves (:mod:`.still_watch`), and why the base is
+        #: taken as moving ('' at rest)
+        self.still = (MotionWatch(len(engine.model.meas), cfg['fine_update_hz'])
+                      if engine.restages else None)
+        self.rest = None
+        self.moving = ''
+        self._rest_s = cfg['coarse_duration']
+        self._gyro_instability = cfg['gyro_bias_instability_dph'] * DPH
 
     @property
     def mech(self):
@@ -159,6 +181,8 @@ class FineStage(EpochUpdates):
         """Return why the phase is not ``aligned`` ('' when it is)."""
         if self.phase == ALIGNED:
             return ''
+        if self.moving:
+            return self.moving
         why = [] if self.converged else ['converging']
         ready = self._ready_reason()
         return '; '.join(why + ([ready] if ready else []))
@@ -166,6 +190,8 @@ class FineStage(EpochUpdates):
     def _ready_reason(self):
         """Return why the attitude is not good enough for ``aligned`` ('' when it is)."""
         tilt, heading = self.readiness()
+        if self.moving:
+            return self.moving
         if self.mounting_doubt:
             return 'vehicle frame far from level: imu_mounting_rpy_deg untold? (self-check)'
         if not self.heading_known:
@@ -186,11 +212,54 @@ class FineStage(EpochUpdates):
             self.engine.widen(var_phi, var_v)
             self._att_cov = None
 
+    def _still_epoch(self, t, gnss):
+        """Judge after a still-base engine's zero-velocity epoch at ``t`` whether the base moves.
+
+        Starts or ends coasting (module docstring); returns the reason to end the stage
+        (the base moves and GNSS fixes come in) or None.
+        """
+        eng = self.engine
+        if self.rest is not None:
+            if not self.rest.shows_rest(t):
+                return None
+            speed = eng.cruise_speed_bound()
+            if speed is None:
+                return None
+            if math.sqrt(max(eng.coast.P[0, 0], eng.coast.P[1, 1])) > MAX_RESUME_TILT:
+                return (f'the IMU shows rest again after {eng.coast.tau:.0f} s of motion '
+                        'without GNSS, the tilt uncertainty beyond the still-base model')
+            eng.resume(speed)
+            self.rest, self.moving = None, ''
+            self.still.reset()
+            self.converged = False
+            self.monitor.start(t)
+            self._att_cov = None
+            return None
+        what = self.still.epoch(eng.last_nis, eng.last_gated)
+        if not what:
+            return None
+        fix = None if gnss is None else gnss.last_fix
+        if fix is not None and t - fix[0] <= GNSS_RECENT_S:
+            return (f'the IMU shows the base moving ({what}): the zero-velocity filter '
+                    f'{eng.model.name} stops so that a GNSS-aided filter takes over')
+        P = self.attitude_cov()
+        heading_sigma = math.sqrt(max(P[2, 2], 0.0)) if self.heading_known else math.pi
+        eng.start_coast(ROLLBACK_S, math.hypot(eng.noise.gyro_bias, self._gyro_instability),
+                        heading_sigma)
+        self.rest = RestWindow(self._rest_s)
+        self.moving = f'{MOVING_WITHOUT_GNSS} (the IMU shows the base moving: {what})'
+        self.phase = FINE
+        self._att_cov = None
+        return None
+
     def _epoch_done(self, t):
         """After a filter epoch at ``t``: the convergence check."""
         self._att_cov = None
         P = self.attitude_cov()
         self.history.add(t, P.diagonal())
+        if self.moving:
+            self.phase = FINE
+            return
         sig_u = math.sqrt(max(P[2, 2], 0.0))
         if not self.converged:
             if not self.engine.restages:
@@ -227,10 +296,15 @@ class FineStage(EpochUpdates):
             t_prev = c.t_last
             j, C, epoch = self.engine.run_block(t[:end], dtheta[:end], dv[:end], i, c.t_last)
             c.t_last = t[j - 1]
-            if epoch:
-                self._epoch_done(c.t_last)
+            if self.rest is not None:
+                self.rest.push(t[i:j], dtheta[i:j], dv[i:j], t_prev)
             reason = None
-            if j == end and hd is not None:
+            if epoch:
+                reason = self._still_epoch(c.t_last, gnss)
+                C[-1] = self.mech.C_b_n
+                if reason is None:
+                    self._epoch_done(c.t_last)
+            if reason is None and j == end and hd is not None:
                 dt = t[hd] - (t[hd - 1] if hd > i else t_prev)
                 reason = self._apply_heading(t[hd], dtheta[hd], dt)
                 C[-1] = self.mech.C_b_n
@@ -307,7 +381,13 @@ class FineStage(EpochUpdates):
         if eng.restages:
             C, epoch = eng.step(dtheta, dv, dt)
             c.t_last = t
+            if self.rest is not None:
+                self.rest.push(t, dtheta, dv, t - dt)
             if epoch:
+                reason = self._still_epoch(t, gnss)
+                C = eng.mech.C_b_n
+                if reason is not None:
+                    return one_row(t, C, eng.attitude_cov(), FINE, None), reason
                 self._epoch_done(t)
             if self.headings is not None and self.headings.due(t):
                 reason = self._apply_heading(t, dtheta, dt)

@@ -74,6 +74,8 @@ def hand_over(window, cfg, noise, clock, gnss, headings, install):
         # stationary filter, chosen by the user or by auto) there is no GNSS
         at_rest = not m.moving and (m.speed is not None or not aided)
         check = self_check.check(window, position, cfg, at_rest, gnss)
+        if check is not None and check.latitude is not None:
+            position_source = 'gyro_latitude'      # the self-check's estimate (in place)
         if check.widened:
             cfg.update(check.widened)
             noise = noise_spec(cfg)

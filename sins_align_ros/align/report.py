@@ -54,14 +54,16 @@ class ConditionReport:
     def __init__(self):
         self._reported = {'rejected': 0, 'forced': 0, 'ahead_of_imu': 0, 'queue_full': 0}
         self._mounting = ''
+        self._moving = ''
 
     def conditions(self, p):
         """Degraded conditions of pipeline ``p`` as ``[(level, text)]`` (1 warn, 2 error).
 
         GNSS epochs rejected by the innovation gate, re-anchoring after a run of
         rejections, fixes stamped ahead of the IMU clock, epochs dropped from a full
-        queue, a GNSS-aided filter running without GNSS, and the under-way mounting
-        check's finding (:mod:`.sideslip`).
+        queue, a GNSS-aided filter running without GNSS, the under-way mounting
+        check's finding (:mod:`.sideslip`), and a still-base filter's base found moving
+        or at rest again (:mod:`.still_watch`).
         """
         out = []
         gate = getattr(p.engine, 'gate', None)
@@ -85,6 +87,14 @@ class ConditionReport:
             self._mounting = doubt
             if p.check is None or doubt != p.check.mounting_doubt:   # (said at hand-over)
                 out.append((1, doubt))
+        moving = p.fine.moving if p.fine is not None else ''
+        if moving != self._moving:
+            if moving:
+                out.append((1, moving + '; attitude from the gyros alone, its sigma growing'))
+            else:
+                out.append((1, 'the IMU has shown rest for a whole coarse window: '
+                               'zero-velocity alignment resumed'))
+            self._moving = moving
         n = self._since('queue_full', p.gnss.counts['queue_full'])
         if n > 0:
             out.append((1, f'{n} GNSS epoch(s) dropped: more than {QUEUE} '

@@ -16,12 +16,23 @@ alignment leaves 0.5 deg) a restage only throws away the bias/heading correlatio
 first stage learnt: the 10/12-state heading sigma went back from 3.4' to 29' at 270 s
 on a still navigation-grade IMU (error 0.1-2'), and ``aligned`` came at 480 s instead
 of 300 s.
+
+Each zero-velocity epoch is gated: one whose innovation is beyond any still base's
+(:data:`~.still_watch.P_FALSE`) is refused, so an acceleration is not turned into tilt;
+the fine stage decides from the refusals and the innovations whether the base moves
+(:mod:`.still_watch`) and may then make the engine coast (:meth:`StationaryEngine.start_coast`:
+free gyro integration with a growing covariance, the last seconds' feedbacks undone) until
+the base has shown rest again (:meth:`StationaryEngine.resume`).
 """
+from collections import deque
+
 import numpy as np
 
 from ..filters import kf
+from ..filters.chi2 import chi2_quantile
 from .gnss_gate import GnssGate
 from .heading import LINEAR_MAX, gated_yaw_update, take_heading
+from .still_watch import P_FALSE, ROLLBACK_S, Coast, cruise_floor
 from ..models.stationary import unobservable_variance
 from ..nav import earth
 from ..nav.frames import rotvec_to_dcm
@@ -97,6 +108,20 @@ class StationaryEngine:
         self.n_updates = 0
         self.last_nis = float('nan')
         self._disc_cache = {}
+        #: a zero-velocity epoch with an NIS above this is refused (:mod:`.still_watch`)
+        self.zv_gate = chi2_quantile(1.0 - P_FALSE, len(m.meas))
+        #: the last epoch was refused; refused epochs so far
+        self.last_gated = False
+        self.n_gated = 0
+        #: the covariance after each of the last epochs and the attitude correction it fed
+        #: back (a rollback when the base is found moving), the start first
+        self._recent = deque([(self.P, np.zeros(3), np.zeros(3))],
+                             maxlen=int(np.ceil(ROLLBACK_S / self.period)) + 1)
+        #: free gyro integration while the base moves (:class:`~.still_watch.Coast`), or None
+        self.coast = None
+        #: variances (3,) added to the misalignment's after the base moved and came to rest
+        #: (:meth:`resume`)
+        self.cruise_floor = None
 
     # -- stepping --------------------------------------------------------------------------
     def run_block(self, t, dtheta, dv, i, t_last):
@@ -131,16 +156,34 @@ class StationaryEngine:
         return C, False
 
     def _epoch(self, dt):
-        """Predict over ``dt``, update with zero velocity, feed back (seed 002 eq. 3)."""
+        """Predict over ``dt``, update with zero velocity, feed back (seed 002 eq. 3).
+
+        An epoch whose innovation is beyond :attr:`zv_gate` is refused (predicted only);
+        while coasting the covariance grows instead (:class:`~.still_watch.Coast`).
+        """
+        self.since_update = 0.0
+        if self.coast is not None:
+            self.coast.advance(dt, float(np.hypot(*self.mech.v_n[:2])))
+            return
         m = self.model
         Phi, Qd = self._discretize(dt)
-        self.x, self.P = kf.predict(self.x, self.P, Phi, Qd)
+        x, P = kf.predict(self.x, self.P, Phi, Qd)
         z = self.mech.v_n[m.meas]
-        self.x, self.P, y, S = kf.update(self.x, self.P, z, self.H, self.R)
+        y = z - self.H @ x
+        S = self.H @ P @ self.H.T + self.R
         self.last_nis = kf.nis(y, S)
+        self.last_gated = self.last_nis > self.zv_gate
+        if self.last_gated:
+            self.x, self.P = x, P
+            self.n_gated += 1
+            self._recent.append((P, np.zeros(3), np.zeros(3)))
+            return
+        self.x, self.P, y, S = kf.update(x, P, z, self.H, self.R)
         self.n_updates += 1
+        dvel = np.zeros(3)
+        dvel[m.meas] = self.x[m.i_v]
+        self._recent.append((self.P, self.x[m.i_phi].copy(), dvel))
         self._feed_back()
-        self.since_update = 0.0
 
     def _feed_back(self):
         """Feedback: ``C = exp([phi x]) C~`` (seed 002 eq. 3), velocity error removed."""
@@ -167,6 +210,8 @@ class StationaryEngine:
             self._epoch(self.since_update)
         m = self.model
         yaw = fix.yaw + w_up * (t_now - fix.t)
+        if self.coast is not None:
+            return self._coast_heading(fix, yaw)
         k_up = np.arange(m.n)[m.i_phi][2]
         if self.P[k_up, k_up] > LINEAR_MAX ** 2:
             self.mech.C_b_n, self.P = take_heading(self.mech.C_b_n, self.P, k_up, yaw, fix.var)
@@ -182,6 +227,80 @@ class StationaryEngine:
             result = 'used'
         self.heading_measured()
         return result
+
+    def _coast_heading(self, fix, yaw):
+        """Apply :meth:`update_heading`'s yaw update to the coasting covariance."""
+        c = self.coast
+        if c.P[2, 2] > LINEAR_MAX ** 2:
+            self.mech.C_b_n, c.P = take_heading(self.mech.C_b_n, c.P, 2, yaw, fix.var)
+            return 'taken'
+        upd = gated_yaw_update(self.heading_gate, c, np.zeros(3), c.P, np.arange(3),
+                               self.mech.C_b_n, fix, yaw)
+        if upd is None:
+            return 'rejected'
+        x, c.P = upd
+        self.mech.C_b_n = rotvec_to_dcm(x) @ self.mech.C_b_n
+        return 'used'
+
+    # -- a base that moves -------------------------------------------------------------------
+    def start_coast(self, seconds_back, gyro_bias, heading_sigma):
+        """Stop the zero-velocity filter: free gyro integration from ``seconds_back`` ago.
+
+        The feedbacks of the epochs of the last ``seconds_back`` seconds (at most
+        :data:`~.still_watch.ROLLBACK_S`) are undone on the attitude (the feedback is a
+        rotation on the navigation side; the Earth rate turned the attitude by less than
+        1e-3 rad in between, so the order of the two is immaterial), and the covariance
+        restarts from the attitude covariance before them, grown over the time since
+        (:class:`~.still_watch.Coast`; ``gyro_bias`` rad/s, ``heading_sigma`` rad). The
+        velocity corrections of those epochs are undone as well, so that the integrated
+        velocity counts the motion from its start. Returns the seconds actually undone.
+        """
+        n = min(len(self._recent) - 1, int(round(seconds_back / self.period)))
+        recent = list(self._recent)
+        C, dvel = self.mech.C_b_n, np.zeros(3)
+        for _, phi, dv in reversed(recent[len(recent) - n:]):
+            C = rotvec_to_dcm(-phi) @ C
+            dvel -= dv
+        self.mech.C_b_n = C
+        self.mech.correct_velocity(dvel)
+        P_before = recent[len(recent) - 1 - n][0]
+        self.coast = Coast(self._attitude_cov(P_before), n * self.period, self.lat,
+                           heading_sigma, gyro_bias, self.noise)
+        self.last_gated = False
+        return n * self.period
+
+    def cruise_speed_bound(self):
+        """Return the speed (m/s) the base may still have after coasting, or None if moving.
+
+        None when the velocity integrated while coasting is not back to zero within
+        3 :attr:`~.still_watch.Coast.v_sigma` (a base cruising at a constant velocity);
+        else that velocity plus 3 sigma: what a base that shows rest may still cruise at.
+        """
+        c = self.coast
+        speed = float(np.hypot(*self.mech.v_n[:2]))
+        return None if speed > 3.0 * c.v_sigma else speed + 3.0 * c.v_sigma
+
+    def resume(self, speed_bound):
+        """Zero-velocity filtering again from the coasting attitude (the base shows rest).
+
+        The velocity restarts at zero; the filter from its prior with the coasting
+        misalignment covariance (its correlation with the biases is gone). The base may
+        cruise at up to ``speed_bound`` m/s unseen (:meth:`cruise_speed_bound`): its
+        Coriolis acceleration would tilt the zero-velocity solution and its transport rate
+        turn the gyrocompass heading, so both are added to the attitude variances from now
+        on (:func:`~.still_watch.cruise_floor`).
+        """
+        m = self.model
+        P_phi = self.coast.P
+        self.coast = None
+        self.cruise_floor = cruise_floor(speed_bound, self.lat, self.g)
+        self.mech.correct_velocity(self.mech.v_n)
+        P = m.P0(0.01, np.sqrt(np.diag(P_phi)), self.noise)
+        P[np.ix_(m.i_phi, m.i_phi)] = P_phi
+        self.x = np.zeros(m.n)
+        self.P = P
+        self._recent.clear()
+        self._recent.append((P, np.zeros(3), np.zeros(3)))
 
     def heading_measured(self):
         """Drop the heading's :attr:`bound`: an external heading, not the gyro bias, sets it."""
@@ -239,8 +358,16 @@ class StationaryEngine:
         of 0.27 deg, 7 % of the samples beyond 3 sigma). Raising diagonal entries keeps
         the matrix positive semi-definite.
         """
+        if self.coast is not None:
+            return self.coast.P
+        P = self._attitude_cov(self.P)
+        if self.cruise_floor is not None:
+            P = P + np.diag(self.cruise_floor)
+        return P
+
+    def _attitude_cov(self, P_full):
         ip = self.model.i_phi
-        P = self.P[np.ix_(ip, ip)]
+        P = P_full[np.ix_(ip, ip)]
         d = np.diag(P)
         if np.any(d < self.bound):
             P = P + np.diag(np.maximum(self.bound - d, 0.0))
@@ -248,6 +375,9 @@ class StationaryEngine:
 
     def widen(self, var_phi, var_v):
         """Add ``var_phi`` (rad^2) to each misalignment and ``var_v`` to each velocity variance."""
+        if self.coast is not None:
+            self.coast.P[np.diag_indices(3)] += var_phi
+            return
         m = self.model
         P = self.P.copy()
         P[m.i_phi, m.i_phi] += var_phi
@@ -256,7 +386,8 @@ class StationaryEngine:
 
     def status(self):
         """Filter internals for diagnostics."""
-        s = {'filter_updates': self.n_updates, 'innovation_nis': self.last_nis}
+        s = {'filter_updates': self.n_updates, 'innovation_nis': self.last_nis,
+             'zero_velocity_refused': self.n_gated, 'coasting': self.coast is not None}
         if self.heading_gate.n_rejected or self.bound[2] == 0.0:
             s.update(self.heading_gate.status())
         return s

@@ -25,7 +25,7 @@ Scenarios: :func:`scenario` builds a named :class:`Scenario` (trajectory, IMU
 spec, GNSS spec, duration and the initial misalignment the seed applies to the
 fine filter); ``SCENARIOS`` lists the names.
 """
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -244,6 +244,50 @@ def _ship_underway():
         misalignment_deg=(0.1, 0.1, 1.0))
 
 
+def _robot(still_s=90.0):
+    """Build a small ground robot: MEMS IMU, still ``still_s``, then about 1 m/s, turning often.
+
+    The turns (their sizes, rates and the straight legs between them) are drawn once from
+    a fixed generator, so the trajectory is the same in every run; the sensor noise
+    varies with the run's seed.
+    """
+    rng = np.random.default_rng(4343)
+    segs = [Segment(still_s), Segment(2.5, accel=0.5, ramp=0.5)]
+    for _ in range(40):
+        angle = rng.uniform(20.0, 180.0) * rng.choice((-1.0, 1.0))
+        rate = rng.uniform(15.0, 45.0)
+        turn = abs(angle) / rate
+        segs += [Segment(float(rng.uniform(3.0, 12.0))),
+                 Segment(turn + 1.0, turn_rate=float(np.sign(angle) * rate), ramp=0.5)]
+    return Scenario(
+        name='robot_lot', description=f'small ground robot on a parking lot: MEMS IMU, still '
+                                      f'for {still_s:.0f} s, then about 1 m/s with frequent '
+                                      'turns of random size; consumer GNSS at 5 Hz',
+        trajectory=Trajectory(48.1, 11.6, 520.0, heading_deg=70.0, speed=0.0,
+                              segments=segs, name='robot_lot'),
+        imu=SENSOR_GRADES['mems'],
+        gnss=GnssSpec(rate_hz=5.0, pos_sigma_h=1.5, pos_sigma_v=3.0, vel_sigma=0.1),
+        duration=400.0, misalignment_deg=(1.0, 1.0, 10.0))
+
+
+def starting_still(sc, still_s, accel=0.05):
+    """Scenario ``sc`` with the vehicle still for ``still_s`` seconds before its manoeuvres.
+
+    A vehicle that starts under way first accelerates from rest to its initial speed at
+    ``accel`` m/s^2 (a ship: 0.05 m/s^2, 5 kn in 51 s). The name gets ``_still<N>``.
+    """
+    tr = sc.trajectory
+    lead = [Segment(float(still_s))]
+    if tr.speed > 0.0:
+        # a plateau of D - ramp at full acceleration: the speed gained is accel (D - ramp)
+        lead.append(Segment(tr.speed / accel + 1.0, accel=accel, ramp=1.0))
+    sc.trajectory = replace(tr, speed=0.0, segments=lead + list(tr.segments))
+    sc.duration += sum(s.duration for s in lead)
+    sc.name = f'{sc.name}_still{still_s:.0f}'
+    sc.description = f'{sc.description}; still for the first {still_s:.0f} s'
+    return sc
+
+
 #: a mast-top GNSS antenna: 10 m aft of the IMU, 2 m to port, 18 m up (FLU)
 MAST_LEVER_ARM_M = (-10.0, 2.0, 18.0)
 #: robot_localization's test robot: its IMU turned +90 deg about x and -90 deg about z
@@ -275,6 +319,7 @@ _FACTORIES = {
     'seed004_low': lambda: _severe_sea('low'),
     'ship_sway': _ship_sway,
     'ship_underway': _ship_underway,
+    'robot_lot': _robot,
     'ship_sway_mast': lambda: _installed(
         _ship_sway, 'ship_sway_mast', 'GNSS antenna at the masthead (18 m up)',
         gnss_lever_arm_m=MAST_LEVER_ARM_M),
