@@ -55,6 +55,7 @@ setup(
             'simulator_node = sins_align_ros.ros.simulator_node:main',
             'sins_align_demo = sins_align_ros.ros.demo:main',
             'sins_align_replay = sins_align_ros.cli.replay:run',
+            'sins_align_record = sins_align_ros.cli.record:main',
         ],
     },
 )

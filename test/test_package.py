@@ -11,6 +11,8 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 EXECUTABLES = ('alignment_node', 'alignment_lifecycle_node', 'simulator_node')
+#: console scripts of sins_align_ros/cli (no ROS graph): name -> module:function
+TOOLS = {'sins_align_replay': 'replay:run', 'sins_align_record': 'record:main'}
 
 
 def test_package_xml_is_format3_ament_python_with_rosdep_keys():
@@ -34,6 +36,8 @@ def test_setup_cfg_installs_scripts_where_ros2_run_looks():
     setup = (ROOT / 'setup.py').read_text()
     for exe in EXECUTABLES:
         assert re.search(rf"'{exe} = sins_align_ros\.ros\.{exe}:main'", setup)
+    for tool, target in TOOLS.items():
+        assert f"'{tool} = sins_align_ros.cli.{target}'" in setup, tool
 
 
 def resolve_executable(name):
@@ -52,7 +56,7 @@ def resolve_executable(name):
     return path
 
 
-@pytest.mark.parametrize('exe', EXECUTABLES)
+@pytest.mark.parametrize('exe', EXECUTABLES + tuple(TOOLS))
 def test_executables_resolve_through_ament_index(exe):
     path = resolve_executable(exe)
     assert Path(path).parent.name == 'sins_align_ros'
