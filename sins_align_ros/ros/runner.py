@@ -24,7 +24,12 @@ def run(make_node, name, make_executor=None, done=lambda node: False, args=None)
     stderr and exit code 2. Once the node is built, an exception in a callback does not
     end the process (:func:`spin`). SIGINT ends with exit code 0. Returns the exit code.
     """
-    rclpy.init(args=args)
+    try:
+        rclpy.init(args=args)
+    except RuntimeError as exc:   # rcl refused the arguments: a params file missing or not YAML
+        from .params import startup_error
+        print(f'{name}: {startup_error(exc)}', file=sys.stderr)
+        return 2
     node = None
     try:
         try:
