@@ -4,11 +4,12 @@
                       [--imu-rate HZ] [--gnss-rate HZ] [--truth-rate HZ]
                       [--start-time S] --out DIR
 
-Writes the topics ``imu/data_raw``, ``gnss/fix``, ``gnss/vel`` and ``sim/truth`` with the
-contents and stamps simulator_node publishes for the same parameters (one code path:
-:mod:`sins_align_ros.io.sim_messages`), as an sqlite3 rosbag2 folder that
-``sins_align_replay`` and ``ros2 bag play`` read. Each message's receive time is its stamp.
-Errors end with one line on stderr and exit code 2 (usage) or 1 (cannot write).
+Writes the topics ``imu/data_raw``, ``gnss/fix``, ``gnss/vel`` (not for a position-only
+receiver) and ``sim/truth`` with the contents and stamps simulator_node publishes for the
+same parameters (one code path: :mod:`sins_align_ros.io.sim_messages`), as an sqlite3
+rosbag2 folder that ``sins_align_replay`` and ``ros2 bag play`` read. Each message's
+receive time is its stamp. Errors end with one line on stderr and exit code 2 (usage) or 1
+(cannot write).
 """
 import argparse
 import sys
@@ -33,7 +34,7 @@ def _parser():
     ap.add_argument('--duration', type=float, default=0.0, metavar='SECONDS',
                     help="simulated duration (default: the scenario's)")
     ap.add_argument('--imu-rate', type=float, default=0.0, metavar='HZ',
-                    help="IMU rate (default: the scenario's, 100 Hz)")
+                    help="IMU rate (default: the scenario's, 100 Hz for most)")
     ap.add_argument('--gnss-rate', type=float, default=0.0, metavar='HZ',
                     help="GNSS rate (default: the scenario's)")
     ap.add_argument('--truth-rate', type=float, default=10.0, metavar='HZ',

@@ -10,7 +10,9 @@ packages' classes and publishes what it gets; :func:`write_simulated_bag` (behin
 Both kinds of class take every field by keyword, and every field is given, so the two
 carry the same contents.
 
-What the messages hold is documented in :mod:`sins_align_ros.ros.simulator_node`.
+What the messages hold is documented in :mod:`sins_align_ros.ros.simulator_node`. A
+position-only receiver (``GnssSpec.velocity`` False) has no ``gnss/vel``: :func:`topics`
+leaves it out, and neither the node nor the recorder creates it.
 """
 import math
 
@@ -37,6 +39,12 @@ _STATUS_NO_FIX, _STATUS_FIX, _SERVICE_GPS = -1, 0, 1
 _COV_UNKNOWN, _COV_DIAGONAL_KNOWN = 0, 2
 _ORDER = {'imu': 0, 'truth': 1, 'fix': 2, 'vel': 3}   # same stamp: this order
 _BLOCK_S = 1.0   # seconds of data per block
+
+
+def topics(sc):
+    """Return the :data:`TOPICS` of scenario ``sc``: no ``vel`` without a receiver velocity."""
+    vel = sc.gnss is None or sc.gnss.velocity
+    return {k: v for k, v in TOPICS.items() if vel or k != 'vel'}
 
 
 def simulated_scenario(name, grade='', duration=0.0):
@@ -136,7 +144,7 @@ class SimulatedMessages:
             for j in range(len(g.t)):
                 t = g.t[j]
                 items.append((t, 'fix', (t, g.lat[j], g.lon[j], g.h[j], g.fix[j], g.pos_cov)))
-                if g.fix[j]:
+                if g.fix[j] and g.v_n is not None:
                     items.append((t, 'vel', (t, g.v_n[j], g.vel_cov)))
         items.sort(key=lambda it: (it[0], _ORDER[it[1]]))
         return items
@@ -209,17 +217,18 @@ def write_simulated_bag(path, sc, **kwargs):
     """Record scenario ``sc`` into a rosbag2 (sqlite3) at ``path``, as simulator_node publishes it.
 
     ``kwargs`` are those of :class:`SimulatedMessages` (seed, rates, frames, ``start_ns``);
-    the topics are :data:`TOPICS` with a leading slash, each message's receive time its
-    stamp. Needs the ``rosbags`` library. Returns the number of messages per topic key.
+    the topics are :func:`topics` of ``sc`` with a leading slash (no ``gnss/vel`` from a
+    position-only receiver), each message's receive time its stamp. Needs the ``rosbags``
+    library. Returns the number of messages per topic key.
     """
     from rosbags.rosbag2 import Writer
     from rosbags.typesys import Stores, get_typestore
     ts = get_typestore(Stores.ROS2_JAZZY)
     messages = SimulatedMessages(sc, ts.types.__getitem__, **kwargs)
-    counts = dict.fromkeys(TOPICS, 0)
+    counts = dict.fromkeys(topics(sc), 0)
     with Writer(path, version=8) as w:
         conns = {k: w.add_connection('/' + name, typ, typestore=ts)
-                 for k, (name, typ) in TOPICS.items()}
+                 for k, (name, typ) in topics(sc).items()}
         while True:
             items = messages.next_block()
             if not items:

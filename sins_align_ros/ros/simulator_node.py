@@ -8,7 +8,8 @@ Publishes (relative names, remappable):
   (``orientation_covariance[0] = -1``, REP-145).
 * ``gnss/fix`` (sensor_msgs/NavSatFix): STATUS_FIX with a diagonal ENU covariance,
   or STATUS_NO_FIX with NaN position during outages.
-* ``gnss/vel`` (geometry_msgs/TwistWithCovarianceStamped): ENU velocity.
+* ``gnss/vel`` (geometry_msgs/TwistWithCovarianceStamped): ENU velocity; not created
+  for a scenario whose receiver has no velocity (``GnssSpec.velocity`` False).
 * ``sim/truth`` (nav_msgs/Odometry): pose in the local ENU frame ``world_frame_id``
   with its origin at the start position; twist in the body frame (the
   message's convention: ``child_frame_id``).
@@ -33,7 +34,7 @@ from rosgraph_msgs.msg import Clock
 from .conversions import ns_to_stamp, sec_to_ns
 from .params import Param, declare
 from .runner import run
-from ..io.sim_messages import TOPICS, SimulatedMessages, simulated_scenario
+from ..io.sim_messages import SimulatedMessages, simulated_scenario, topics
 from ..sim.presets import SCENARIOS, SENSOR_GRADES
 
 PARAMS = (
@@ -43,7 +44,8 @@ PARAMS = (
           f'{", ".join(SENSOR_GRADES)}; empty: the scenario\'s own', read_only=True),
     Param('seed', 0, 'random seed; the same seed gives the same data', 0, 2 ** 31 - 1,
           read_only=True),
-    Param('imu_rate_hz', 0.0, 'IMU rate, Hz (0: the scenario default, 100 Hz)', 0.0, 4000.0,
+    Param('imu_rate_hz', 0.0, 'IMU rate, Hz (0: the scenario default, 100 Hz for most)', 0.0,
+          4000.0,
           read_only=True),
     Param('gnss_rate_hz', 0.0, 'GNSS rate, Hz (0: the scenario default)', 0.0, 50.0,
           read_only=True),
@@ -90,7 +92,7 @@ class SimulatorNode(Node):
                          history=HistoryPolicy.KEEP_LAST)
         depth = {'imu': qos, 'fix': 10, 'vel': 10, 'truth': 50}
         self.pubs = {k: self.create_publisher(ros_message_class(typ), name, depth[k])
-                     for k, (name, typ) in TOPICS.items()}
+                     for k, (name, typ) in topics(self.sc).items()}
         self.pub_clock = self.create_publisher(Clock, '/clock', 10)
         self._queue = deque()   # pending (t, key, args) in stamp order
         self._k = 0             # IMU samples published

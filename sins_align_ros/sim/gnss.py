@@ -33,6 +33,16 @@ class GnssSpec:
         Bernoulli probability ``p`` of an outlier epoch (seed 004 eq. 25).
     outlier_scale : float
         Standard-deviation multiplier of the contaminating distribution.
+    velocity : bool
+        The receiver delivers a velocity (Doppler). False: a position-only receiver; its
+        epochs carry no velocity (``GnssEpoch.v_n`` and ``vel_cov`` None) and
+        ``gnss/vel`` is neither published nor recorded.
+    reported_pos_sigma_h, reported_pos_sigma_v : float or None
+        The position 1-sigma the receiver *reports* (NavSatFix covariance), m. None:
+        the total of the white and Markov errors, :attr:`pos_sigma` (honest in size,
+        though a white covariance says nothing of the correlation). A consumer
+        receiver reports about its white noise: give that value to make the reported
+        covariance optimistic in size as well.
     """
 
     rate_hz: float = 1.0
@@ -46,6 +56,9 @@ class GnssSpec:
     outages: tuple = ()
     outlier_prob: float = 0.0
     outlier_scale: float = 10.0
+    velocity: bool = True
+    reported_pos_sigma_h: float = None
+    reported_pos_sigma_v: float = None
 
     def with_(self, **kw):
         """Return a copy with some fields changed."""
@@ -58,6 +71,14 @@ class GnssSpec:
         return np.array([h, h, np.hypot(self.pos_sigma_v, self.pos_markov_sigma)])
 
     @property
+    def reported_pos_sigma(self):
+        """Position 1-sigma per ENU axis the receiver reports, m (:attr:`pos_sigma` unless set)."""
+        tot = self.pos_sigma
+        h = tot[0] if self.reported_pos_sigma_h is None else self.reported_pos_sigma_h
+        v = tot[2] if self.reported_pos_sigma_v is None else self.reported_pos_sigma_v
+        return np.array([h, h, v], dtype=float)
+
+    @property
     def vel_sigma_enu(self):
         """Total 1-sigma velocity error per ENU axis, m/s."""
         return np.full(3, np.hypot(self.vel_sigma, self.vel_markov_sigma))
@@ -68,9 +89,10 @@ class GnssEpoch:
     """Measurements at times ``t`` (N,).
 
     ``lat``, ``lon``, ``h`` (N,) measured position (rad, rad, m); ``v_n`` (N, 3)
-    measured ENU velocity; ``pos_err_m`` (N, 3) the ENU position error actually
+    measured ENU velocity, None from a receiver without velocity
+    (``GnssSpec.velocity`` False); ``pos_err_m`` (N, 3) the ENU position error actually
     added; ``fix`` (N,) bool; ``outlier`` (N,) bool; ``pos_cov`` and ``vel_cov``
-    (3,) diagonal ENU variances the receiver reports.
+    (3,) diagonal ENU variances the receiver reports (``vel_cov`` None without velocity).
     """
 
     t: np.ndarray
@@ -130,9 +152,12 @@ class GnssErrors:
         fix = np.ones(n, bool)
         for a, b in s.outages:
             fix &= ~((t >= a) & (t < b))
-        return GnssEpoch(t=np.asarray(t, float), lat=lat, lon=lon, h=h, v_n=v_n + ve,
+        # the velocity errors are drawn either way: the position errors of a seed do not
+        # depend on whether the receiver delivers a velocity
+        vel, vel_cov = (v_n + ve, s.vel_sigma_enu ** 2) if s.velocity else (None, None)
+        return GnssEpoch(t=np.asarray(t, float), lat=lat, lon=lon, h=h, v_n=vel,
                          pos_err_m=pe, fix=fix, outlier=outlier,
-                         pos_cov=s.pos_sigma ** 2, vel_cov=s.vel_sigma_enu ** 2)
+                         pos_cov=s.reported_pos_sigma ** 2, vel_cov=vel_cov)
 
 
 def heading_measurements(t, yaw_true, sigma, rate_hz, rng, t_start=0.0):
