@@ -14,12 +14,23 @@ mems          200        3.0        50, 300    5000       350        ADXRS610 / 
 usv_high      0.02       0.002      -          50         10         seed 004 "high"
 usv_medium    5          0.1        2, 100     500        80         seed 004 "medium"
 usv_low       50         0.5        10, 100    2000       200        seed 004 "low"
+mems_ahrs     400        0.42       10, 300    7000       120        raw AHRS triads
 ============  ========  =========  =========  =========  =========  ==============
 
 Seed 000 gives its gyro noise as 0.0005 deg/h and accelerometer noise as 5e-6 g
 without a bandwidth; we read them as 0.0005 deg/sqrt(h) and 5 ug/sqrt(Hz).
 Seed 004's Table 2 values are not in the text we have; the usv_* grades are our
 choice of the three classes it describes and are documented as such.
+
+``mems_ahrs``: the raw gyro and accelerometer triads of an industrial MEMS AHRS, read
+without the AHRS's factory calibration (issue 44). Its turn-on errors are drawn per run
+(``random_bias``) as N(0, sigma^2): gyro bias 400 deg/h, gyro scale factor 2 % per axis,
+accelerometer bias 7 mg, accelerometer scale factor 0.4 %, and an axis misalignment of
+0.5 % on each of the six off-diagonal entries of both triads (the sizes issue 44 reports
+for such triads). Its noise is that of the Xsens MTi-1 series datasheet: gyro noise
+density 0.007 deg/s/sqrt(Hz) (0.42 deg/sqrt(h)), in-run bias stability 10 deg/h (our
+Markov sigma, tau 300 s), accelerometer noise density 120 ug/sqrt(Hz) and zero-offset
+instability 0.03 mg (Markov, tau 300 s).
 
 Scenarios: :func:`scenario` builds a named :class:`Scenario` (trajectory, IMU
 spec, GNSS spec, duration and the initial misalignment the seed applies to the
@@ -53,6 +64,14 @@ SENSOR_GRADES = {
     'usv_low': ImuSpec(gyro_bias_dph=50.0, gyro_arw_dpsh=0.5, gyro_markov_dph=10.0,
                        gyro_markov_tau_s=100.0, accel_bias_ug=2000.0,
                        accel_vrw_ug_rthz=200.0),
+    # uncalibrated raw triads of an industrial MEMS AHRS (module docstring): turn-on
+    # errors drawn per run, noise of the Xsens MTi-1 series datasheet
+    'mems_ahrs': ImuSpec(gyro_bias_dph=400.0, gyro_arw_dpsh=0.42, gyro_markov_dph=10.0,
+                         gyro_markov_tau_s=300.0, gyro_scale_ppm=20000.0,
+                         gyro_misalign_ppm=5000.0, accel_bias_ug=7000.0,
+                         accel_vrw_ug_rthz=120.0, accel_markov_ug=30.0,
+                         accel_markov_tau_s=300.0, accel_scale_ppm=4000.0,
+                         accel_misalign_ppm=5000.0, random_bias=True),
 }
 
 #: seed 000 sec. 4.1 sway: 2 deg / 3 s, 4 deg / 5 s, 3 deg / 7 s (pitch, roll, heading)
@@ -288,6 +307,104 @@ def starting_still(sc, still_s, accel=0.05):
     return sc
 
 
+#: a skid-steer robot's vibration on asphalt (sample RMS at the IMU rate, full from 0.5 m/s)
+ROBOT_VIBRATION = dict(vibration_gyro_dps=3.0, vibration_accel_mps2=1.5, vibration_tau_s=0.05,
+                       vibration_full_speed_mps=0.5)
+
+
+def _robot_skid():
+    """Build robot_lot's robot never still: under way at 1 m/s from t = 0, same turns.
+
+    Raw MEMS AHRS triads (``mems_ahrs``) at 30 Hz on a vibrating skid-steer chassis; a
+    consumer receiver with positions only at 2.5 Hz, 0.8 m white + 1.5 m Gauss-Markov
+    over 60 s, reporting 0.9 m (the issue 44 robot's receiver).
+    """
+    base = _robot()
+    tr = base.trajectory
+    # robot_lot's first two segments are its rest and its start (to 1 m/s): drop them
+    return Scenario(
+        name='robot_skid',
+        description='skid-steer robot on a parking lot, never still: about 1 m/s from the '
+                    'start with frequent turns of random size (robot_lot\'s), raw MEMS AHRS '
+                    'triads at 30 Hz with vibration, consumer GNSS positions only at 2.5 Hz '
+                    '(0.8 m white + 1.5 m over 60 s, reporting 0.9 m), no gnss/vel',
+        trajectory=replace(tr, speed=1.0, segments=list(tr.segments[2:]), name='robot_skid'),
+        imu=SENSOR_GRADES['mems_ahrs'].with_(**ROBOT_VIBRATION),
+        gnss=GnssSpec(rate_hz=2.5, pos_sigma_h=0.8, pos_sigma_v=1.6, pos_markov_sigma=1.5,
+                      pos_markov_tau_s=60.0, vel_sigma=0.1, velocity=False,
+                      reported_pos_sigma_h=0.9, reported_pos_sigma_v=1.8),
+        duration=400.0, imu_rate_hz=30.0, misalignment_deg=(1.0, 1.0, 10.0))
+
+
+def urban_route(duration, v0=10.0, seed=4444):
+    """Segments of a car in town, under way at ``v0`` m/s: ``duration`` s or a little more.
+
+    Drawn once from the fixed generator ``seed`` (the same route in every run): legs of
+    8-25 s at 8-14 m/s between events: a junction turn (slow to 5 m/s, turn 60-100 deg
+    at 12-20 deg/s, speed up), a stop (brake at about 1.5 m/s^2, stand 5-20 s, pull away
+    at about 1.5 m/s^2) or a bend (10-40 deg at 2-5 deg/s, at speed).
+    """
+    rng = np.random.default_rng(seed)
+    segs, v, total = [], float(v0), 0.0
+
+    def change(dv, a):              # a speed change of dv at about |a| (or gentler), ramp 1 s
+        d = max(abs(dv) / a + 1.0, 3.0)
+        return Segment(d, accel=dv / (d - 1.0), ramp=1.0)
+
+    while total < duration:
+        new = [Segment(float(rng.uniform(8.0, 25.0)))]
+        kind = rng.choice(('turn', 'stop', 'bend'), p=(0.4, 0.3, 0.3))
+        target = float(rng.uniform(8.0, 14.0))
+        if kind == 'turn':
+            angle = float(rng.uniform(60.0, 100.0) * rng.choice((-1.0, 1.0)))
+            rate = float(rng.uniform(12.0, 20.0))
+            new += [change(5.0 - v, 2.0),
+                    Segment(abs(angle) / rate + 1.0, turn_rate=np.sign(angle) * rate, ramp=0.5),
+                    change(target - 5.0, 1.5)]
+        elif kind == 'stop':
+            new += [change(-v, 1.5), Segment(float(rng.uniform(5.0, 20.0))),
+                    change(target, 1.5)]
+        else:
+            angle = float(rng.uniform(10.0, 40.0) * rng.choice((-1.0, 1.0)))
+            rate = float(rng.uniform(2.0, 5.0))
+            new += [Segment(abs(angle) / rate + 2.0, turn_rate=np.sign(angle) * rate, ramp=1.0),
+                    change(target - v, 1.0)]
+        segs += new
+        total += sum(sg.duration for sg in new)
+        v = target
+    return segs
+
+
+def _urban_car(name, description, imu, gnss, duration):
+    return Scenario(
+        name=name, description=description,
+        trajectory=Trajectory(52.52, 13.40, 40.0, heading_deg=35.0, speed=10.0,
+                              segments=urban_route(duration), name='urban_car'),
+        imu=imu, gnss=gnss, duration=duration, misalignment_deg=(1.0, 1.0, 10.0))
+
+
+def _car_consumer():
+    return _urban_car(
+        'car_consumer', 'car in town, under way from the start (10 m/s; junction turns, '
+        'stops, bends): raw MEMS AHRS triads, consumer GNSS at 5 Hz (position 1 m white + '
+        '1.5 m over 60 s, reporting 1 m; Doppler velocity 0.08 m/s)',
+        SENSOR_GRADES['mems_ahrs'],
+        GnssSpec(rate_hz=5.0, pos_sigma_h=1.0, pos_sigma_v=2.0, pos_markov_sigma=1.5,
+                 pos_markov_tau_s=60.0, vel_sigma=0.08, reported_pos_sigma_h=1.0,
+                 reported_pos_sigma_v=2.0),
+        480.0)
+
+
+def _car_rtk():
+    sc = starting_still(_urban_car(
+        'car_rtk', 'car in town (junction turns, stops, bends): MEMS IMU, RTK GNSS at 5 Hz '
+        '(2 cm, 4 cm vertical, 0.02 m/s)', SENSOR_GRADES['mems'],
+        GnssSpec(rate_hz=5.0, pos_sigma_h=0.02, pos_sigma_v=0.04, vel_sigma=0.02), 480.0),
+        30.0, accel=1.5)
+    sc.name = 'car_rtk'
+    return sc
+
+
 #: a mast-top GNSS antenna: 10 m aft of the IMU, 2 m to port, 18 m up (FLU)
 MAST_LEVER_ARM_M = (-10.0, 2.0, 18.0)
 #: robot_localization's test robot: its IMU turned +90 deg about x and -90 deg about z
@@ -320,6 +437,9 @@ _FACTORIES = {
     'ship_sway': _ship_sway,
     'ship_underway': _ship_underway,
     'robot_lot': _robot,
+    'robot_skid': _robot_skid,
+    'car_consumer': _car_consumer,
+    'car_rtk': _car_rtk,
     'ship_sway_mast': lambda: _installed(
         _ship_sway, 'ship_sway_mast', 'GNSS antenna at the masthead (18 m up)',
         gnss_lever_arm_m=MAST_LEVER_ARM_M),
