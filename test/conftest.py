@@ -2,6 +2,7 @@
 import fcntl
 import itertools
 import os
+import signal
 import tempfile
 import time
 from pathlib import Path
@@ -122,3 +123,18 @@ def shared_data(name):
     if not p.exists():
         pytest.skip(f'{p} not present (../shared/data is not beside the checkout)')
     return p
+
+
+def interrupt(proc, timeout=15.0):
+    """Stop a node process as Ctrl-C does; return ``(exit code, stdout, stderr)``.
+
+    A process still alive ``timeout`` seconds after the SIGINT is killed (the test then
+    sees its negative exit code).
+    """
+    proc.send_signal(signal.SIGINT)
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except Exception:
+        proc.kill()
+        out, err = proc.communicate()
+    return proc.returncode, out, err

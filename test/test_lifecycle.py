@@ -6,7 +6,6 @@ noise-free IMU (gravity and Earth rate at 34 deg N, a known attitude) and record
 ``imu/data`` and ``/diagnostics``; the transition methods are never called directly.
 """
 import os
-import signal
 import subprocess
 
 import numpy as np
@@ -24,7 +23,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E
 from sensor_msgs.msg import Imu  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-from conftest import spin_until  # noqa: E402
+from conftest import interrupt, spin_until  # noqa: E402
 from sins_align_ros.nav import earth  # noqa: E402
 from sins_align_ros.nav.frames import euler_to_dcm, quat_to_euler  # noqa: E402
 from sins_align_ros.ros.alignment_lifecycle_node import AlignmentLifecycleNode  # noqa: E402
@@ -288,11 +287,10 @@ def test_lifecycle_executable_is_managed_over_its_services_and_exits_on_sigint(
             c.settle(0.1)
         assert spin_until(c.ex, lambda: len(c.out) == 149, timeout_s=10.0)
         assert np.abs(euler_of(c.out[-1]) - RPY).max() < 0.01 * DEG
-        proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=15.0)
+        code, out, err = interrupt(proc)
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-    assert proc.returncode == 0, err
+    assert code == 0, err
     assert 'Traceback' not in err and 'Traceback' not in out

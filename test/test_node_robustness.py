@@ -15,7 +15,6 @@ on the executables' executor (rclpy's EventsExecutor); the executables themselve
 processes in two tests, driven by a probe node in the test's Context.
 """
 import os
-import signal
 import subprocess
 import time
 from pathlib import Path
@@ -35,7 +34,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E
 from sensor_msgs.msg import Imu  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-from conftest import spin_until  # noqa: E402
+from conftest import interrupt, spin_until  # noqa: E402
 from sins_align_ros.ros.alignment_lifecycle_node import _TRANSITIONS  # noqa: E402
 from sins_align_ros.ros.alignment_node import AlignmentNode  # noqa: E402
 from sins_align_ros.ros.runner import spin  # noqa: E402
@@ -281,14 +280,8 @@ def _start(exe, domain_id, *params):
 def _stop(proc):
     """SIGINT the process; return (exit code, stderr)."""
     assert proc.poll() is None, proc.communicate()
-    proc.send_signal(signal.SIGINT)
-    try:
-        _, err = proc.communicate(timeout=15.0)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-    return proc.returncode, err
+    code, _, err = interrupt(proc)
+    return code, err
 
 
 def test_executable_survives_reset_and_clock_jump(ros_context, domain_id):

@@ -1,6 +1,5 @@
 """Nodes on a real DDS graph: simulator output, /clock, parameters, config files, SIGINT."""
 import os
-import signal
 import subprocess
 import time
 from pathlib import Path
@@ -20,7 +19,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus  # noqa: E402
 
-from conftest import spin_until  # noqa: E402
+from conftest import interrupt, spin_until  # noqa: E402
 from sins_align_ros.nav import earth  # noqa: E402
 from sins_align_ros.nav.frames import (euler_to_dcm, nav_to_euler,  # noqa: E402
                                        quat_to_euler)
@@ -450,12 +449,11 @@ def test_executables_start_and_exit_cleanly_on_sigint(exe, ros_context, domain_i
             assert proc.poll() is None, proc.communicate()
             time.sleep(0.1)
         assert exe in probe.get_node_names()
-        proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=15.0)
+        code, out, err = interrupt(proc)
     finally:
         if proc.poll() is None:
             proc.kill()
-    assert proc.returncode == 0, err
+    assert code == 0, err
     assert 'Traceback' not in err and 'Traceback' not in out
 
 

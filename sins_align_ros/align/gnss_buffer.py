@@ -149,7 +149,8 @@ class GnssBuffer:
         with ``use_gnss_position`` off): the ``initial_*`` parameters; with
         ``initial_latitude_deg`` not set (NaN) the latitude is 0 and the source
         ``latitude_not_set``: the sensor self-check then estimates it from the gyros in
-        place, or says it is unknown (:mod:`.self_check`).
+        place (the hand-over then names the source ``gyro_latitude``), or says it is
+        unknown (:mod:`.self_check`).
         """
         if cfg['use_gnss_position'] and self.recent_fixes:
             if aided:
