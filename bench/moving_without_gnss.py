@@ -18,11 +18,9 @@
 Usage: python bench/moving_without_gnss.py [--runs 10] [--before DIR]
 """
 import argparse
-import hashlib
 import os
 import subprocess
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -105,7 +103,10 @@ for name, go in cases.items():
 
 
 def still_cases(root):
-    """Run :data:`STILL_SCRIPT` on the package at ``root``: {case: (digest, refused, coast, phase)}."""
+    """Run :data:`STILL_SCRIPT` on the package at ``root``.
+
+    Returns {case: (digest, refused epochs, coasting, phase)}.
+    """
     env = dict(os.environ, PYTHONPATH=str(root))
     text = subprocess.run([sys.executable, '-c', STILL_SCRIPT], cwd=root, env=env, check=True,
                           capture_output=True, text=True).stdout
@@ -146,7 +147,8 @@ def main(argv=None):
               'Zero-velocity epochs refused, coasting at the end, final phase, and the output '
               'rows (t, quaternion, sigma, covariance, phase) against the code before the '
               'watch.', '',
-              '| case | refused epochs | coasting | phase | rows as before |', '|---|---|---|---|---|']
+              '| case | refused epochs | coasting | phase | rows as before |',
+              '|---|---|---|---|---|']
     now = still_cases(ROOT)
     before = still_cases(Path(args.before)) if args.before else {}
     for name, (digest, refused, coast, phase) in now.items():

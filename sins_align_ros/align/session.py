@@ -250,7 +250,7 @@ def feed_arrays(p, imu, gnss, use_velocity=True, block=100, callback=None, headi
             if gnss.fix[gi]:
                 p.position_fix(gnss.t[gi], gnss.lat[gi] / DEG, gnss.lon[gi] / DEG, gnss.h[gi],
                                pos_var=np.asarray(gnss.pos_cov)[:2])
-                if use_velocity:
+                if use_velocity and gnss.v_n is not None:      # None: a position-only receiver
                     p.velocity_fix(gnss.t[gi], gnss.v_n[gi],
                                    vel_var=np.asarray(gnss.vel_cov)[:2])
             gi += 1

@@ -303,7 +303,7 @@ def write_scenario_bag(path, sc, seed=0, duration=None, start_time=1_700_000_000
                                      altitude=float(g.h[j]), position_covariance=cov,
                                      position_covariance_type=2)
                     events.append((g.t[j], 2, c_fix, ts.serialize_cdr(fx, FIX_TYPE)))
-                    if g.fix[j]:
+                    if g.fix[j] and g.v_n is not None:      # None: a position-only receiver
                         tcov = np.zeros(36)
                         tcov[[0, 7, 14]] = g.vel_cov
                         tcov[[21, 28, 35]] = 1e6

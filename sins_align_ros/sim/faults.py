@@ -72,9 +72,11 @@ class MessageStream:
                          'lon_deg': np.where(fix, np.degrees(g.lon), np.nan),
                          'h': np.where(fix, g.h, np.nan),
                          'pos_var': np.tile(np.asarray(g.pos_cov, float)[:2], (m, 1)),
-                         'vel': np.asarray(g.v_n, float).copy(),
-                         'vel_var': np.tile(np.asarray(g.vel_cov, float)[:2], (m, 1)),
-                         'has_vel': fix.copy()}
+                         'vel': (np.full((m, 3), np.nan) if g.v_n is None
+                                 else np.asarray(g.v_n, float).copy()),
+                         'vel_var': np.tile(np.asarray(g.vel_cov if g.v_n is not None
+                                                       else (np.nan,) * 3, float)[:2], (m, 1)),
+                         'has_vel': fix & (g.v_n is not None)}
         self.truth = imu
 
     def copy(self):
