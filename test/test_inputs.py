@@ -14,6 +14,7 @@ from sins_align_ros.sim.faults import MessageStream, inject
 from sins_align_ros.sim.presets import scenario
 from sins_align_ros.sim.scenario import ScenarioStream
 from sins_align_ros.units import ARCMIN
+from tolerance import roundoff  # noqa: E402
 
 
 def _feed(conv, t, w):
@@ -304,4 +305,6 @@ def test_imu_block_gives_the_rows_and_counts_of_imu_sample_by_sample():
     assert np.array_equal(o1.t, o2.t) and list(o1.phase) == list(o2.phase)
     ok = np.isfinite(o1.q[:, 0])
     assert ok.sum() > 1000 and np.array_equal(ok, np.isfinite(o2.q[:, 0]))
-    assert np.abs(o1.q[ok] - o2.q[ok]).max() < 1e-12
+    # one session fed message by message, one by blocks: the same arithmetic grouped
+    # otherwise over the run's samples, n x 150 operations (test_pipeline, test/tolerance.py)
+    assert np.abs(o1.q[ok] - o2.q[ok]).max() <= roundoff(len(o1.t) * 150)

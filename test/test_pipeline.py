@@ -14,6 +14,7 @@ from sins_align_ros.sim.presets import (SENSOR_GRADES, Scenario, alignment_param
 from sins_align_ros.sim.trajectory import Segment, Trajectory
 from sins_align_ros.sim.scenario import ScenarioStream
 from sins_align_ros.units import ARCMIN, DEG
+from tolerance import roundoff  # noqa: E402
 
 SEED002 = {'initial_latitude_deg': 34.0, 'initial_longitude_deg': 75.0,
            'initial_height_m': 100.0}
@@ -114,7 +115,10 @@ def test_one_sample_at_a_time_equals_one_batch():
     single = Output.concat([p2.process(b.imu.t[k:k + 1], b.imu.dtheta[k:k + 1],
                                        b.imu.dv[k:k + 1]) for k in range(len(b.imu.t))])
     fine = batch.phase != COARSE
-    assert np.abs(batch.q[fine] - single.q[fine]).max() < 1e-12
+    # the same arithmetic in another grouping over n samples: a strapdown step (~50
+    # operations) and at most one filter step (~100) each, passed on with gain at most 1
+    # (orthonormal products, a stable filter): n x 150 operations (test/tolerance.py)
+    assert np.abs(batch.q[fine] - single.q[fine]).max() <= roundoff(len(b.imu.t) * 150)
     assert np.array_equal(batch.phase, single.phase)
 
 
@@ -133,10 +137,19 @@ def test_one_sample_at_a_time_equals_one_batch_on_a_moving_base(fine_filter):
     batch, single = outs
     fine = batch.phase != COARSE
     assert fine.sum() > 5000 and np.array_equal(batch.phase, single.phase)
-    assert np.abs(batch.q[fine] - single.q[fine]).max() < 1e-12
-    assert np.abs(batch.sigma[fine] - single.sigma[fine]).max() < 1e-12
+    n_ops = len(b.imu.t) * 150
+    # the same arithmetic in another grouping over n samples: a strapdown step (~50
+    # operations) and at most one filter step (~100) each, passed on with gain at most 1
+    # (orthonormal products, a stable filter): n x 150 operations (test/tolerance.py)
+    assert np.abs(batch.q[fine] - single.q[fine]).max() <= roundoff(n_ops)
+    assert np.abs(batch.sigma[fine] - single.sigma[fine]).max() <= roundoff(
+        n_ops, np.abs(batch.sigma[fine]).max())
     if batch.nav is not None:
-        assert np.allclose(batch.nav[fine], single.nav[fine], rtol=0, atol=1e-9, equal_nan=True)
+        # latitude/longitude (rad) and velocity (m/s), each on its own scale
+        scale = np.nanmax(np.abs(batch.nav[fine]), axis=0)
+        assert np.all(np.nanmax(np.abs(batch.nav[fine] - single.nav[fine]), axis=0)
+                      <= roundoff(n_ops, scale))
+        assert np.array_equal(np.isnan(batch.nav[fine]), np.isnan(single.nav[fine]))
 
 
 @pytest.mark.parametrize('extra', [0, 37])
