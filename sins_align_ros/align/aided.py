@@ -34,6 +34,7 @@ from .epoch_noise import EpochNoise
 from .force import ForceModel
 from .gnss_gate import FilterDiverged
 from .heading_update import ExternalHeading
+from .rotation_error import RotationError
 
 #: the longest interval the error model is propagated without a measurement, s
 MAX_PREDICT = 2.0
@@ -274,7 +275,7 @@ class ConsistencyRemedies:
 
 
 class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHeading,
-                      EpochNoise):
+                      EpochNoise, RotationError):
     """Mechanization + error-state filter at GNSS epochs; see the module docstring.
 
     Parameters
@@ -340,6 +341,8 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
     def step_imu(self, dtheta, dv, dt):
         """Mechanize one sample; returns the current ``C_b_n`` (3, 3)."""
         dtheta, dv = self._correct_imu(dtheta, dv, dt)
+        if self._rot_sigma is not None:
+            self._add_rotation(dtheta)
         m = self.mech
         C = m.step(dtheta, dv, dt)
         self.sums.add(m, C, dt)
@@ -365,6 +368,7 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
             over = self._interval_full(w)
             j = i + (int(over[0]) + 1 if len(over) else len(w))
             dth, dvc = self._correct_imu(dtheta[i:j], dv[i:j], dt[i:j, None])
+            self._add_rotation(dth)
             out = self.mech.run(dth, dvc, dt[i:j], as_step=True)
             self.sums.add_block(out, dt[i:j])
             C[i:j] = out['C_b_n']
@@ -417,12 +421,16 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
         """Set Q of the interval since the last epoch; return what was lent, or None.
 
         ``diag(Qc) T`` plus a dropped force's velocity noise
-        (:meth:`~.force.ForceModel._force_noise`). An adaptive filter keeps its own Q;
-        the dropped force's part is lent to it for the step and taken back after it
-        (:meth:`_return_process_noise`).
+        (:meth:`~.force.ForceModel._force_noise`) and the rotation-proportional noise of the
+        gyro scale factors and misalignment (:mod:`.rotation_error`). An adaptive filter
+        keeps its own Q; those two parts are lent to it for the step and taken back after
+        it (:meth:`_return_process_noise`).
         """
         T = max(self.sums.T, 1e-3)
         E = self._force_noise(T)
+        E_rot = self._rotation_noise(T)
+        if E_rot is not None:
+            E = E_rot if E is None else E + E_rot
         if not self.adaptive:
             self.kf.Q = np.diag(self.Qc * T) + (0.0 if E is None else E)
             return None

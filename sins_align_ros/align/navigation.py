@@ -286,7 +286,9 @@ class IntegratedNavigation(GnssAidedEngine):
             Phi = self._Phi
         else:
             Phi = lc.transition(self._F, T)
-        self.kf.Q = self._process_noise(Phi, T)
+        Q = self._process_noise(Phi, T)
+        E_rot = self._rotation_noise(T)        # gyro scale factors, misalignment
+        self.kf.Q = Q if E_rot is None else Q + E_rot
 
     def _process_noise(self, Phi, T):
         """Q (n, n) of ``T`` s with transition ``Phi``: the trapezoid, a dropped force's part."""

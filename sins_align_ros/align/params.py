@@ -144,6 +144,12 @@ ALIGNMENT_PARAMS = (
           0.0, 36000.0),
     Param('gyro_bias_tau_s', 300.0, 'correlation time of gyro_bias_instability_dph, s',
           1.0, 1e6),
+    Param('gyro_scale_factor_ppm', 0.0, 'gyro scale-factor error, 1 sigma per axis, ppm '
+          '(filter model: a heading/tilt error that grows with the angle turned; GNSS-aided '
+          'filters; the self-check raises it to the class its gyro noise shows)', 0.0, 1e5),
+    Param('gyro_misalignment_ppm', 0.0, 'gyro axis misalignment (non-orthogonality), 1 '
+          'sigma per off-diagonal entry, ppm (filter model, as gyro_scale_factor_ppm: a turn '
+          'about one axis leaks into the other two)', 0.0, 1e5),
     Param('accel_bias_ug', 100.0, 'accelerometer constant bias, 1 sigma, micro-g', 0.0, 1e5),
     Param('accel_vrw_ug_rthz', 10.0, 'accelerometer white noise, micro-g/sqrt(Hz)', 0.0, 1e5),
     Param('zero_velocity_sigma', 0.01, 'zero-velocity measurement noise, m/s (still base)',

@@ -120,6 +120,12 @@ GYRO_INSTABILITY_PER_ARW = 15.0
 #: on a moving base, accelerometer bias floor (ug) by gyro white noise (deg/sqrt(h), upper
 #: edge): navigation, tactical, industrial and consumer MEMS classes
 ACCEL_BIAS_BY_GYRO_NOISE = ((0.003, 100.0), (0.15, 500.0), (0.6, 2000.0), (math.inf, 5000.0))
+#: on a moving base, the gyro scale-factor and misalignment sigmas (ppm) by gyro white noise
+#: (the same classes): MEMS triads (industrial and consumer) that no one calibrated have
+#: scale factors of 1-3 % and axis misalignment of about 0.5 % (issue 44); the navigation
+#: and tactical classes' are left to the user (0 by default: their cells unchanged)
+SCALE_BY_GYRO_NOISE = ((0.003, (0.0, 0.0)), (0.15, (0.0, 0.0)), (0.6, (20000.0, 5000.0)),
+                       (math.inf, (20000.0, 5000.0)))
 #: on a moving base, the most accelerometer white noise (ug/sqrt(Hz)) counted, by the
 #: same gyro classes (vibration above it is not random walk at GNSS intervals)
 ACCEL_VRW_BY_GYRO_NOISE = ((0.003, 10.0), (0.15, 80.0), (0.6, 200.0), (math.inf, 350.0))
@@ -525,6 +531,15 @@ def _noise(out, cfg, arw, vrw, moving):
         if moving:
             _raise(out, cfg, 'accel_bias_ug',
                    _class_value(ACCEL_BIAS_BY_GYRO_NOISE, arw / DPSH), 'ug')
+    if moving and math.isfinite(arw):    # turns: the scale factors of the gyro's class
+        for name, value in zip(('gyro_scale_factor_ppm', 'gyro_misalignment_ppm'),
+                               _class_value(SCALE_BY_GYRO_NOISE, arw / DPSH)):
+            if value > _model(out, cfg, name):
+                out.findings.append(
+                    f'{name} raised from {_model(out, cfg, name):.3g} to {value:.3g} ppm: '
+                    f'the gyro noise ({arw / DPSH:.3g} deg/sqrt(h)) is of a MEMS triad, whose '
+                    'scale factors and axis misalignment turn each turn into attitude error')
+                out.widened[name] = value
     if vrw > NOISE_RATIO * vrw_cfg:
         out.widened['accel_vrw_ug_rthz'] = vrw / UG
         out.findings.append(f'accelerometer white noise {vrw / UG:.3g} ug/sqrt(Hz) in the '

@@ -1,0 +1,77 @@
+"""The gyro scale-factor and misalignment errors as model-error noise of the aided filters.
+
+A gyro triad measures ``(I + S + M) w`` (issue 44): scale factors ``S`` (diagonal) and
+axis misalignment ``M`` (off-diagonal) turn every rotation into an attitude error
+proportional to it. No filter state models them; instead, over each filter interval the
+misalignment covariance grows by what they can do to the rotation turned since (a
+random constant ``s`` per scale factor and ``m`` per off-diagonal entry):
+
+    error_j = s_j A_j + sum_{i != j} m_ji A_i,
+    var_j(A) = s^2 A_j^2 + m^2 (|A|^2 - A_j^2)
+
+in body axes, ``A`` the signed body rotation (rad) summed over the last
+:data:`ROTATION_MEMORY_S` seconds (exponential forgetting: the GNSS aiding observes the
+error a turn left within such a time, and a vehicle circling for minutes must not build
+up a variance without bound). Each interval adds ``var(A + dA) - var(A)`` (never less
+than zero), turned into the navigation frame with the attitude, to the misalignment's
+process noise: a 90 deg turn adds the whole ``(s * 90 deg)^2`` of a constant scale
+factor, not the ``1/N`` of it that white noise over its N intervals would.
+
+Not in the seeds (their IMUs are calibrated): an uncalibrated MEMS AHRS's triads have
+scale factors of 1-3 % and axis misalignment of 0.5 %, so a 90-deg junction turn leaves
+up to 1.8 deg of heading and 0.45 deg of tilt (the z gyro's rate leaking into x and y).
+"""
+import math
+
+import numpy as np
+
+#: seconds over which the rotation that the errors act on is remembered
+ROTATION_MEMORY_S = 30.0
+
+
+class RotationError:
+    """Mixin of :class:`~.aided.GnssAidedEngine`: the rotation-proportional process noise.
+
+    The engine calls :meth:`_add_rotation` with the increments it mechanizes and takes
+    :meth:`_rotation_noise` into its process noise at every prediction.
+    """
+
+    #: (scale factor, misalignment) 1-sigma, rad/rad; None: not modelled
+    _rot_sigma = None
+
+    def set_rotation_error(self, scale, misalignment):
+        """Model gyro scale factors ``scale`` and misalignment ``misalignment`` (1-sigma, -)."""
+        if scale <= 0.0 and misalignment <= 0.0:
+            self._rot_sigma = None
+            return
+        self._rot_sigma = (float(scale), float(misalignment))
+        self._rot = np.zeros(3)
+        self._rot_A = np.zeros(3)
+
+    def _add_rotation(self, dtheta):
+        """Count mechanized increments ``dtheta`` ((3,) or (N, 3), rad) into the interval."""
+        if self._rot_sigma is not None:
+            d = np.asarray(dtheta, dtype=float)
+            self._rot += d if d.ndim == 1 else np.add.reduce(d, axis=0)
+
+    def _rotation_var(self, A):
+        """Variance (3,) per body axis of the attitude error after a rotation ``A`` (3,)."""
+        s, m = self._rot_sigma
+        a2 = A * A
+        return s * s * a2 + m * m * (a2.sum() - a2)
+
+    def _rotation_noise(self, T):
+        """Process noise (n, n) of the rotation since the last call, over ``T`` s, or None."""
+        if self._rot_sigma is None:
+            return None
+        A = self._rot_A * math.exp(-T / ROTATION_MEMORY_S)
+        B = A + self._rot
+        inc = np.maximum(self._rotation_var(B) - self._rotation_var(A), 0.0)
+        self._rot_A = B
+        self._rot = np.zeros(3)
+        n = len(self.kf.x)
+        k = np.arange(n)[self.i_phi]
+        C = self.mech.C_b_n
+        E = np.zeros((n, n))
+        E[np.ix_(k, k)] = (C * inc) @ C.T
+        return E
