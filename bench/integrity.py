@@ -13,12 +13,20 @@ filter is told about the sensors:
   ARW, bias instability, accelerometer bias and VRW, GNSS position, height and
   velocity sigma) divided by 10.
 
+Ground vehicles (issue 44, ``--ground``): the skid-steer robot (``robot_skid``), a car under
+way from the start (``car_consumer``'s route) and a car standing still before it drives
+(``car_rtk``'s), each with three receivers (``GROUND_GNSS``: RTK; a consumer receiver with
+1 m white and 1.5 m Gauss-Markov (60 s) position error reporting 1 m, Doppler velocity; the
+same without velocity at 2.5 Hz) and two IMUs (``mems``; ``mems_ahrs``, raw AHRS triads
+with turn-on scale factors and misalignment), the robot's vibration kept; for ``auto``,
+``kf``, ``ukf`` and ``asckf``. Scenario keys ``vehicle:receiver`` (``car:posonly``).
+
 N seeded runs per cell; per cell the statistics of ``sins_align_ros.eval.integrity``
 (ended inside 3 sigma, silent-wrong runs, final RMS error per ENU axis against the
 analytic limit of ``eval.evidence.limits_of``, sharpness) and a verdict. Writes
 ``bench/results/integrity.md``.
 
-Usage: python bench/integrity.py [--runs 10] [--jobs 1] [--filters a,b] [--grades a,b]
+Usage: python bench/integrity.py [--ground] [--runs 10] [--jobs 1] [--filters a,b] [--grades a,b]
        [--told a,b] [--scenarios a,b] [--duration-scale 1.0] [--runs-for scen=N ...]
        [--estimate] [--cache] [--raw FILE | --from-raw FILE] [--commit TEXT] [--out FILE]
 """
@@ -49,7 +57,8 @@ from sins_align_ros.eval.pool import monte_carlo  # noqa: E402
 from sins_align_ros.eval.report import am  # noqa: E402
 from sins_align_ros.eval.run import run_pipeline  # noqa: E402
 from sins_align_ros.eval.scenarios import named, simulate  # noqa: E402
-from sins_align_ros.sim.presets import alignment_params  # noqa: E402
+from sins_align_ros.sim.gnss import GnssSpec  # noqa: E402
+from sins_align_ros.sim.presets import SENSOR_GRADES, alignment_params, scenario  # noqa: E402
 
 #: scenario key -> (preset, duration s, why this duration)
 SCENARIOS = {
@@ -78,6 +87,29 @@ FILTER_SCENARIOS = {
     'ukf': ('static', 'seed003_car', 'seed001_flight'),
     'auto': ('static', 'ship_sway', 'seed000', 'seed001_flight', 'seed003_car', 'seed004'),
 }
+#: ground vehicles (issue 44): vehicle -> (preset whose trajectory and IMU rate it takes,
+#: duration s, what it is)
+GROUND = {
+    'robot': ('robot_skid', 400.0, 'skid-steer robot, never still, 1 m/s, frequent turns, '
+                                   'vibration, 30 Hz IMU'),
+    'car': ('car_consumer', 480.0, 'car in town under way from the start'),
+    'car_still': ('car_rtk', 510.0, 'car in town, still for 30 s first'),
+}
+#: the receivers of the ground cells
+GROUND_GNSS = {
+    'rtk': GnssSpec(rate_hz=5.0, pos_sigma_h=0.02, pos_sigma_v=0.04, vel_sigma=0.02),
+    'consumer': GnssSpec(rate_hz=5.0, pos_sigma_h=1.0, pos_sigma_v=2.0, pos_markov_sigma=1.5,
+                         pos_markov_tau_s=60.0, vel_sigma=0.08, reported_pos_sigma_h=1.0,
+                         reported_pos_sigma_v=2.0),
+    'posonly': GnssSpec(rate_hz=2.5, pos_sigma_h=0.8, pos_sigma_v=1.6, pos_markov_sigma=1.5,
+                        pos_markov_tau_s=60.0, vel_sigma=0.1, velocity=False,
+                        reported_pos_sigma_h=0.9, reported_pos_sigma_v=1.8),
+}
+for _v, (_preset, _dur, _what) in GROUND.items():
+    for _g in GROUND_GNSS:
+        SCENARIOS[f'{_v}:{_g}'] = (_preset, _dur, f'{_what}; receiver {_g}')
+GROUND_FILTERS = ('auto', 'kf', 'ukf', 'asckf')
+GROUND_GRADES = ('mems', 'mems_ahrs')
 GRADES = ('navigation', 'tactical', 'mems')
 TOLD = ('right', 'defaults', 'optimistic')
 #: parameters that say where the IMU is, not what it is: the "defaults" cell keeps them
@@ -94,9 +126,24 @@ RATE_HZ = 100.0
 
 
 def scenario_of(key, grade, scale=1.0):
-    """Build scenario ``key`` with the IMU of ``grade``, its duration times ``scale``."""
+    """Build scenario ``key`` with the IMU of ``grade``, its duration times ``scale``.
+
+    A ground key ``vehicle:receiver`` also gets that receiver, and keeps its own IMU's
+    vibration under the new grade.
+    """
     preset, duration, _ = SCENARIOS[key]
-    return named(f'{preset}@{grade}', round(duration * scale, 2))
+    if ':' not in key:
+        return named(f'{preset}@{grade}', round(duration * scale, 2))
+    sc = scenario(preset, duration=round(duration * scale, 2))
+    vib = {k: v for k, v in vars(sc.imu).items() if k.startswith('vibration_')}
+    sc.imu = SENSOR_GRADES[grade].with_(**vib)
+    sc.gnss = GROUND_GNSS[key.split(':')[1]]
+    return sc
+
+
+def is_ground(key):
+    """Tell whether scenario ``key`` is a ground-vehicle cell's (issue 44)."""
+    return ':' in key
 
 
 def told_params(sc, fine_filter, told):
@@ -131,7 +178,7 @@ def run_job(job):
     res = {}
     for f, told in cells:
         run = run_pipeline(told_params(sc, f, told), data)
-        r = run_integrity(run, RATE_HZ)
+        r = run_integrity(run, sc.imu_rate_hz)
         p = run.pipeline
         r['refused'] = r['n_samples'] == 0 and any('the stationary filter' in w
                                                    for w in p.warnings)
@@ -149,11 +196,13 @@ def plan(args):
     """
     cells, per_data = [], {}
     for f in args.filters:
-        for key in FILTER_SCENARIOS[f]:
+        keys = FILTER_SCENARIOS[f] + (tuple(k for k in SCENARIOS if is_ground(k))
+                                      if f in GROUND_FILTERS else ())
+        for key in keys:
             if key not in args.scenarios:
                 continue
             n = args.runs_for.get(key, args.runs)
-            for grade in args.grades:
+            for grade in (GROUND_GRADES if is_ground(key) else args.grades):
                 for told in args.told:
                     cells.append((f, key, grade, told, n))
                     for k in range(n):
@@ -189,7 +238,8 @@ def head(args, cmd, commit):
     dur = '; '.join(f'`{k}` = {SCENARIOS[k][0]}, {SCENARIOS[k][1] * args.duration_scale:.0f} s '
                     f'({SCENARIOS[k][2]})' for k in SCENARIOS if k in args.scenarios)
     return [
-        '# Integrity matrix (issue 21)', '',
+        '# Integrity matrix (issue 21' + (', ground vehicles: issue 44)' if args.ground
+                                          else ')'), '',
         f'Command: `{cmd}` on {machine_summary()}; commit {commit}.', '',
         'Every fine filter and `auto` (the node\'s default) through the whole pipeline '
         '(coarse, then fine) on the scenarios it applies to, with the scenario\'s IMU '
@@ -233,7 +283,11 @@ def main(argv=None):
     ap.add_argument('--filters', default=','.join(FILTER_SCENARIOS))
     ap.add_argument('--grades', default=','.join(GRADES))
     ap.add_argument('--told', default=','.join(TOLD))
-    ap.add_argument('--scenarios', default=','.join(SCENARIOS))
+    ap.add_argument('--scenarios', default=','.join(k for k in SCENARIOS if not is_ground(k)),
+                    help='scenario keys (default: the still, ship, flight and car cells of '
+                         'issue 21; the ground cells with --ground)')
+    ap.add_argument('--ground', action='store_true',
+                    help='the ground-vehicle cells (issue 44) instead of --scenarios')
     ap.add_argument('--duration-scale', type=float, default=1.0)
     ap.add_argument('--cache', action='store_true',
                     help=f'keep the simulations in {CACHE} (repeated subsets)')
@@ -244,8 +298,16 @@ def main(argv=None):
     ap.add_argument('--raw', help='also save the per-run results (pickle) to this file')
     ap.add_argument('--from-raw', help='write the page from saved per-run results (the same '
                                        'options) instead of running')
-    ap.add_argument('--out', default=str(ROOT / 'bench' / 'results' / 'integrity.md'))
+    ap.add_argument('--out', help='the results page (default bench/results/integrity.md, '
+                                  'with --ground integrity_ground.md)')
     args = ap.parse_args(argv)
+    if args.out is None:
+        args.out = str(ROOT / 'bench' / 'results' / (
+            'integrity_ground.md' if args.ground else 'integrity.md'))
+    if args.ground:
+        args.scenarios = ','.join(k for k in SCENARIOS if is_ground(k))
+        if args.filters == ','.join(FILTER_SCENARIOS):
+            args.filters = ','.join(GROUND_FILTERS)
     for name, allowed in (('filters', FILTER_SCENARIOS), ('grades', GRADES), ('told', TOLD),
                           ('scenarios', SCENARIOS)):
         vals = [v for v in getattr(args, name).split(',') if v]
