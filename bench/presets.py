@@ -8,8 +8,9 @@ at all) on the same data: each arm gets exactly its file, as the node would. A
 ``config/simulator_*.yaml`` builds the data of the alignment presets it pairs with (its
 scenario and rates, as ``simulator_node`` would publish them).
 
-Scenario keys: a ``sim.presets`` name, ``~nognss`` appended for the same without a
-receiver; a simulator YAML in config/ (its scenario at its rates); ``fog_mems``, the
+Scenario keys: a ``sim.presets`` name (``name@grade``: with the IMU of that sensor grade),
+``~nognss`` appended for the same without a receiver; a simulator YAML in config/ (its
+scenario at its rates); ``fog_mems``, the
 real MEMS car of ``../shared/data`` (one run: the data are the data), judged as
 ``bench/defaults.py`` judges it (``car_stats``: the errors less the 0.3 deg mounting
 tolerance).
@@ -106,7 +107,8 @@ def scenario_of(key):
         sc.gnss = None
         return sc
     if not key.endswith('.yaml'):
-        return simulated_scenario(key, duration=DURATION_S.get(key, 0.0))
+        name, _, grade = key.partition('@')
+        return simulated_scenario(name, grade, DURATION_S.get(key, 0.0))
     p = load_yaml(CONFIG / key, 'simulator_node')
     sc = simulated_scenario(p['scenario'], p.get('grade', ''),
                             DURATION_S.get(key, p.get('duration', 0.0)))
