@@ -207,6 +207,10 @@ def _refused(c, state, transition):
         t, asked = Transition(id=transition), f'{_TRANSITIONS[transition]} ({transition})'
     assert c.call(c.change, ChangeState.Request(transition=t)).success is False, transition
     assert c.state() == state, transition
+    if state == 'finalized':
+        # the node's /rosout publisher goes with its shutdown: no log line to wait for there
+        # (seen lost in a loaded run); the answer and the kept state are the contract
+        return
     needle = f"transition {asked} refused: not possible from state '{state}'"
     assert spin_until(c.ex, lambda: any(m.level == Log.WARN and needle in m.msg
                                         for m in c.log), 5.0), (needle, [m.msg for m in c.log])

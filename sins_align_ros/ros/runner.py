@@ -38,6 +38,12 @@ def run(make_node, name, make_executor=None, done=lambda node: False, args=None)
             # ParameterException: a start-up value outside a declared range (rclpy refuses it)
             print(f'{name}: {exc}', file=sys.stderr)
             return 2
+        except Exception:                 # noqa: B902 - see below
+            # Ctrl-C during construction shuts the context down under the node (its first
+            # publication then fails): a clean stop, not an error
+            if rclpy.ok():
+                raise
+            return 0
         if make_executor is None:
             from rclpy.executors import SingleThreadedExecutor
             executor = SingleThreadedExecutor()
