@@ -61,8 +61,7 @@ from .gnss_gate import FilterDiverged
 from .imu_input import intervals
 from .output import Rows, one_row
 from .sideslip import SideslipCheck
-from .still_watch import (MAX_RESUME_TILT, MOVING_WITHOUT_GNSS, ROLLBACK_S, MotionWatch,
-                          RestWindow)
+from .still_watch import StillWatch
 from ..units import DPH
 
 FINE, ALIGNED = 'fine', 'aligned'
@@ -131,15 +130,15 @@ class FineStage(EpochUpdates):
         self.sideslip = (SideslipCheck(cfg['mounting_check_max_sideslip_deg'])
                          if cfg['sensor_self_check'] and not engine.restages else None)
         self._att_cov = None
-        #: the zero-velocity innovations' motion test of a still-base engine (or None),
-        #: the IMU samples while the base moves (:mod:`.still_watch`), and why the base is
-        #: taken as moving ('' at rest)
-        self.still = (MotionWatch(len(engine.model.meas), cfg['fine_update_hz'])
+        #: whether a still-base engine's base still rests (:mod:`.still_watch`), or None
+        self.still = (StillWatch(engine, cfg['fine_update_hz'], cfg['coarse_duration'],
+                                 cfg['gyro_bias_instability_dph'] * DPH)
                       if engine.restages else None)
-        self.rest = None
-        self.moving = ''
-        self._rest_s = cfg['coarse_duration']
-        self._gyro_instability = cfg['gyro_bias_instability_dph'] * DPH
+
+    @property
+    def moving(self):
+        """Why the base is taken as moving without GNSS ('' at rest; :mod:`.still_watch`)."""
+        return '' if self.still is None else self.still.moving
 
     @property
     def mech(self):
@@ -213,44 +212,26 @@ class FineStage(EpochUpdates):
             self._att_cov = None
 
     def _still_epoch(self, t, gnss):
-        """Judge after a still-base engine's zero-velocity epoch at ``t`` whether the base moves.
+        """After a still-base engine's zero-velocity epoch at ``t``: the motion watch.
 
-        Starts or ends coasting (module docstring); returns the reason to end the stage
-        (the base moves and GNSS fixes come in) or None.
+        Returns the reason to end the stage, or None (:meth:`.still_watch.StillWatch.epoch`).
         """
-        eng = self.engine
-        if self.rest is not None:
-            if not self.rest.shows_rest(t):
-                return None
-            speed = eng.cruise_speed_bound()
-            if speed is None:
-                return None
-            if math.sqrt(max(eng.coast.P[0, 0], eng.coast.P[1, 1])) > MAX_RESUME_TILT:
-                return (f'the IMU shows rest again after {eng.coast.tau:.0f} s of motion '
-                        'without GNSS, the tilt uncertainty beyond the still-base model')
-            eng.resume(speed)
-            self.rest, self.moving = None, ''
-            self.still.reset()
+        fix = None if gnss is None else gnss.last_fix
+        event, reason = self.still.epoch(
+            t, fix is not None and t - fix[0] <= GNSS_RECENT_S, self._heading_sigma)
+        if event == 'resume':                   # filtering again: it must settle again
             self.converged = False
             self.monitor.start(t)
+        elif event == 'coast':
+            self.phase = FINE
+        if event is not None:
             self._att_cov = None
-            return None
-        what = self.still.epoch(eng.last_nis, eng.last_gated)
-        if not what:
-            return None
-        fix = None if gnss is None else gnss.last_fix
-        if fix is not None and t - fix[0] <= GNSS_RECENT_S:
-            return (f'the IMU shows the base moving ({what}): the zero-velocity filter '
-                    f'{eng.model.name} stops so that a GNSS-aided filter takes over')
+        return reason
+
+    def _heading_sigma(self):
+        """Return the published heading's 1-sigma (rad); pi when the gyros cannot find north."""
         P = self.attitude_cov()
-        heading_sigma = math.sqrt(max(P[2, 2], 0.0)) if self.heading_known else math.pi
-        eng.start_coast(ROLLBACK_S, math.hypot(eng.noise.gyro_bias, self._gyro_instability),
-                        heading_sigma)
-        self.rest = RestWindow(self._rest_s)
-        self.moving = f'{MOVING_WITHOUT_GNSS} (the IMU shows the base moving: {what})'
-        self.phase = FINE
-        self._att_cov = None
-        return None
+        return math.sqrt(max(P[2, 2], 0.0)) if self.heading_known else math.pi
 
     def _epoch_done(self, t):
         """After a filter epoch at ``t``: the convergence check."""
@@ -296,8 +277,8 @@ class FineStage(EpochUpdates):
             t_prev = c.t_last
             j, C, epoch = self.engine.run_block(t[:end], dtheta[:end], dv[:end], i, c.t_last)
             c.t_last = t[j - 1]
-            if self.rest is not None:
-                self.rest.push(t[i:j], dtheta[i:j], dv[i:j], t_prev)
+            if self.still is not None:
+                self.still.push(t[i:j], dtheta[i:j], dv[i:j], t_prev)
             reason = None
             if epoch:
                 reason = self._still_epoch(c.t_last, gnss)
@@ -381,8 +362,8 @@ class FineStage(EpochUpdates):
         if eng.restages:
             C, epoch = eng.step(dtheta, dv, dt)
             c.t_last = t
-            if self.rest is not None:
-                self.rest.push(t, dtheta, dv, t - dt)
+            if self.still is not None:
+                self.still.push(t, dtheta, dv, t - dt)
             if epoch:
                 reason = self._still_epoch(t, gnss)
                 C = eng.mech.C_b_n

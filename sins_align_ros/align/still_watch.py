@@ -207,3 +207,61 @@ class RestWindow:
         t, dth, dv, dt = (np.concatenate(a) for a in zip(*self._blocks))
         keep = t >= t_now - self.duration
         return imu_translation((t[keep], dth[keep], dv[keep], dt[keep])) is None
+
+
+class StillWatch:
+    """The watch of one still-base fine stage: motion test, coasting, rest; module docstring.
+
+    ``engine`` the :class:`~.stationary.StationaryEngine`; ``rate_hz`` its epoch rate;
+    ``rest_s`` the rest it needs to resume (``coarse_duration``); ``gyro_instability``
+    (rad/s) the varying part of the gyro bias, counted with the constant one while coasting.
+    """
+
+    def __init__(self, engine, rate_hz, rest_s, gyro_instability):
+        self.engine = engine
+        self.motion = MotionWatch(len(engine.model.meas), rate_hz)
+        self.rest_s = float(rest_s)
+        self.gyro_instability = float(gyro_instability)
+        #: the IMU samples while the base moves (:class:`RestWindow`), or None at rest
+        self.rest = None
+        #: why the base is taken as moving ('' at rest)
+        self.moving = ''
+
+    def push(self, t, dtheta, dv, t_prev):
+        """Give the rest test the samples ``t`` (whose first interval starts at ``t_prev``)."""
+        if self.rest is not None:
+            self.rest.push(t, dtheta, dv, t_prev)
+
+    def epoch(self, t, gnss_recent, heading_sigma):
+        """Judge after the engine's zero-velocity epoch at ``t`` whether the base moves.
+
+        ``gnss_recent``: GNSS fixes come in; ``heading_sigma()`` the heading's 1-sigma (rad)
+        now. Returns ``(event, reason)``: ``event`` ``'coast'`` (the engine started
+        coasting), ``'resume'`` (it filters again) or None; ``reason`` why the stage must
+        end (moving with GNSS, or at rest with a tilt beyond the still-base model) or None.
+        """
+        eng = self.engine
+        if self.rest is not None:
+            if not self.rest.shows_rest(t):
+                return None, None
+            speed = eng.cruise_speed_bound()
+            if speed is None:
+                return None, None
+            if math.sqrt(max(eng.coast.P[0, 0], eng.coast.P[1, 1])) > MAX_RESUME_TILT:
+                return None, (f'the IMU shows rest again after {eng.coast.tau:.0f} s of motion '
+                              'without GNSS, the tilt uncertainty beyond the still-base model')
+            eng.resume(speed)
+            self.rest, self.moving = None, ''
+            self.motion.reset()
+            return 'resume', None
+        what = self.motion.epoch(eng.last_nis, eng.last_gated)
+        if not what:
+            return None, None
+        if gnss_recent:
+            return None, (f'the IMU shows the base moving ({what}): the zero-velocity filter '
+                          f'{eng.model.name} stops so that a GNSS-aided filter takes over')
+        eng.start_coast(ROLLBACK_S, math.hypot(eng.noise.gyro_bias, self.gyro_instability),
+                        heading_sigma())
+        self.rest = RestWindow(self.rest_s)
+        self.moving = f'{MOVING_WITHOUT_GNSS} (the IMU shows the base moving: {what})'
+        return 'coast', None
