@@ -76,7 +76,7 @@ class Client:
         self.cl.create_subscription(DiagnosticArray, '/diagnostics', self.diag.append, RELIABLE)
         # /rosout keeps its last messages (transient local): a subscription that matched
         # after the node logged still gets them (a discovery race failed CI once)
-        self.cl.create_subscription(Log, '/rosout', self.log.append, QoSProfile(
+        self.sub_log = self.cl.create_subscription(Log, '/rosout', self.log.append, QoSProfile(
             depth=1000, reliability=ReliabilityPolicy.RELIABLE,
             durability=DurabilityPolicy.TRANSIENT_LOCAL))
         self.ex = SingleThreadedExecutor(context=ctx)
@@ -115,6 +115,17 @@ class Client:
         """Spin until imu/data_raw reaches the node and imu/data reaches us (discovery)."""
         assert spin_until(self.ex, lambda: self.pub.get_subscription_count() == 1
                           and self.sub_out.get_publisher_count() == 1, timeout_s=10.0)
+
+    def wait_log_matched(self, node_name='alignment_node'):
+        """Spin until ``node_name``'s /rosout publisher is matched by our log subscription.
+
+        Transient local keeps the node's lines only for their 10 s lifespan: a loaded CI run once
+        matched later than that and the first refusal's line never arrived.
+        """
+        def matched():
+            names = {i.node_name for i in self.cl.get_publishers_info_by_topic('/rosout')}
+            return node_name in names and self.sub_log.get_publisher_count() >= 2
+        assert spin_until(self.ex, matched, timeout_s=30.0)
 
     def settle(self, seconds):
         spin_until(self.ex, lambda: False, timeout_s=seconds)

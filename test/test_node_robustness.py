@@ -213,11 +213,12 @@ def _refused(c, state, transition):
         return
     needle = f"transition {asked} refused: not possible from state '{state}'"
     assert spin_until(c.ex, lambda: any(m.level == Log.WARN and needle in m.msg
-                                        for m in c.log), 5.0), (needle, [m.msg for m in c.log])
+                                        for m in c.log), 15.0), (needle, [m.msg for m in c.log])
 
 
 def test_every_invalid_lifecycle_transition_is_refused_and_the_state_kept(ros_context):
     node, c = make(ros_context)
+    c.wait_log_matched()
     for state, step in (('unconfigured', T.TRANSITION_CONFIGURE),
                         ('inactive', T.TRANSITION_ACTIVATE),
                         ('active', T.TRANSITION_ACTIVE_SHUTDOWN), ('finalized', None)):
