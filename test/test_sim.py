@@ -10,9 +10,10 @@ from sins_align_ros.sim.gnss import GnssErrors, GnssSpec
 from sins_align_ros.sim.imu import ImuErrors, ImuSimulator, ImuSpec, simulate
 from sins_align_ros.sim.presets import SCENARIOS, SENSOR_GRADES, scenario
 from sins_align_ros.sim.scenario import ScenarioStream
-from sins_align_ros.sim.trajectory import Trajectory
+from sins_align_ros.nav.frames import wrap_pi
+from sins_align_ros.sim.trajectory import PositionIntegrator, Segment, Sway, Trajectory
 from sins_align_ros.units import ARCSEC, DEG, DPH, DPSH, G0, KNOT, UG
-from tolerance import assert_roundoff
+from tolerance import assert_roundoff, roundoff
 
 LAT = 34.0
 
@@ -214,3 +215,167 @@ def test_seed000_profile_reaches_plausible_ship_speed():
     assert speed[0] == pytest.approx(5 * KNOT, rel=1e-6)
     assert 8.0 < speed.max() < 15.0                     # about 16-29 kn, not 1400 m/s
     assert np.linalg.norm(kin.a_n, axis=1).max() == pytest.approx(0.1 * G0, rel=0.01)
+
+
+def _ramp_profile_reference(tau, D, r):
+    """s, S, s' of one segment at times ``tau`` (N,), as trajectory.py first wrote it."""
+    s, S, ds = np.zeros_like(tau), np.zeros_like(tau), np.zeros_like(tau)
+    k = np.pi / r
+    up = (tau >= 0.0) & (tau < r)
+    mid = (tau >= r) & (tau <= D - r)
+    down = (tau > D - r) & (tau <= D)
+    s[up] = 0.5 * (1.0 - np.cos(k * tau[up]))
+    S[up] = 0.5 * (tau[up] - np.sin(k * tau[up]) / k)
+    ds[up] = 0.5 * k * np.sin(k * tau[up])
+    s[mid] = 1.0
+    S[mid] = 0.5 * r + (tau[mid] - r)
+    u = D - tau[down]
+    s[down] = 0.5 * (1.0 - np.cos(k * u))
+    S[down] = (D - r) - 0.5 * (u - np.sin(k * u) / k)
+    ds[down] = -0.5 * k * np.sin(k * u)
+    S[tau > D] = D - r
+    return s, S, ds
+
+
+class _LoopTrajectory(Trajectory):
+    """The straightforward form: every segment's profile added in turn, at every time.
+
+    (trajectory.py's own until the 80-segment ground scenarios took 16-27 s to simulate.)
+    """
+
+    def _base(self, t):
+        V, chi = np.full_like(t, self.speed), np.full_like(t, self.heading_deg * DEG)
+        dV, dchi, ddchi, gam, dgam = (np.zeros_like(t) for _ in range(5))
+        starts = np.concatenate([[0.0], np.cumsum([s.duration for s in self.segments])])
+        for seg, t0 in zip(self.segments, starts):
+            if not (seg.accel or seg.turn_rate or seg.climb_rate):
+                continue
+            s, S, ds = _ramp_profile_reference(t - t0, seg.duration, seg.ramp_s)
+            w, c = seg.turn_rate * DEG, seg.climb_rate * DEG
+            V += seg.accel * S
+            dV += seg.accel * s
+            chi += w * S
+            dchi += w * s
+            ddchi += w * ds
+            gam += c * S
+            dgam += c * s
+        return V, dV, chi, dchi, ddchi, gam, dgam
+
+    def velocity(self, t):
+        return self.kinematics(t).v_n[0]
+
+
+def _manoeuvres(cls):
+    """40 segments of random ramps, turns, climbs and pauses; sway; coordinated bank."""
+    rng = np.random.default_rng(44)
+    segs = []
+    for _ in range(40):
+        D = float(rng.choice([0.3, 0.7, 1.1, 2.9, 5.3, 13.7]))   # starts that round
+        on = rng.random(3) < 0.6                                 # none of them: a pause
+        segs.append(Segment(D, accel=on[0] * rng.uniform(-0.2, 0.2),
+                            turn_rate=on[1] * rng.uniform(-15.0, 15.0),
+                            climb_rate=on[2] * rng.uniform(-0.5, 0.5),
+                            ramp=None if rng.random() < 0.7 else D * rng.uniform(0.05, 0.5)))
+    sway = Sway(roll_amp=2.0, roll_period=7.3, roll_phase=0.4, pitch_amp=1.0,
+                pitch_period=5.1, yaw_amp=0.5, yaw_period=11.0, surge_amp=0.3,
+                surge_period=9.0, sway_amp=0.2, sway_period=6.5, heave_amp=0.5,
+                heave_period=8.0)
+    return cls(LAT, 108.0, 30.0, heading_deg=355.0, speed=6.0, segments=segs, sway=sway,
+               coordinated_bank=True, name='manoeuvres')
+
+
+def test_trajectory_sums_only_the_segment_under_way_and_equals_every_segment_added():
+    """Trajectory._base adds the finished segments' whole integrals (summed once) and the
+    profiles of the segment under way and the one before; velocity() is the scalar twin of
+    kinematics(t).v_n for the position ODE. Both equal the straightforward loop to round-off.
+    """
+    traj, ref = _manoeuvres(Trajectory), _manoeuvres(_LoopTrajectory)
+    ends = np.cumsum([s.duration for s in traj.segments])
+    t = np.concatenate([np.arange(-1.0, ends[-1] + 2.0, 0.01), ends,
+                        np.nextafter(ends, -np.inf), np.nextafter(ends, np.inf)])
+    base, base_ref = traj._base(t), ref._base(t)
+    # Bound (tolerance.py): each side sums n_seg terms rate_j * S_j(t) in turn onto the
+    # initial value; a term is ~8 rounded operations (S: pi/r, k tau, sin = 2, /k, -, and
+    # the rate's product), so a partial sum is off by at most (n_seg + 8) u times the sum of
+    # the operands' sizes: |x0| + sum_j |rate_j| max S_j = (D_j - r_j); the derivatives sum
+    # rate_j s_j (s <= 1) and w_j s'_j (|s'| <= pi / (2 r_j)).
+    moving = [s for s in traj.segments if s.accel or s.turn_rate or s.climb_rate]
+    n_ops = len(moving) + 8
+    rho = roundoff(n_ops)                                # relative to each operand scale
+    a = np.array([s.accel for s in moving])
+    w = np.array([s.turn_rate for s in moving]) * DEG
+    c = np.array([s.climb_rate for s in moving]) * DEG
+    D = np.array([s.duration for s in moving])
+    r = np.array([s.ramp_s for s in moving])
+    Vs = traj.speed + np.abs(a) @ (D - r)
+    As = abs(traj.heading_deg * DEG) + (np.abs(w) + np.abs(c)) @ (D - r)
+    dVs, Rs, RRs = np.abs(a).sum(), (np.abs(w) + np.abs(c)).sum(), np.abs(w) @ (np.pi / (2 * r))
+    for name, x, x_ref, scale in zip(('V', 'dV', 'chi', 'dchi', 'ddchi', 'gam', 'dgam'),
+                                     base, base_ref, (Vs, dVs, As, Rs, RRs, As, Rs)):
+        assert_roundoff(x, x_ref, n_ops, scale, what=name)
+
+    # kinematics: the same code on both sides, on base values within the bounds above,
+    # propagated to first order (v = V u(chi, gam); a = V' u + V u'; roll = atan(V chi'/g0))
+    # plus ~10-20 rounded operations of its own on the size of each output
+    V, dV, chi, dchi, ddchi, gam, dgam = base_ref
+    Vm, dVm, Rm, RRm = np.abs(V).max(), np.abs(dV).max(), (np.abs(dchi) + np.abs(dgam)).max(), \
+        np.abs(ddchi).max()
+    sw = traj.sway
+    osc = [(sw.surge_amp, sw.surge_period), (sw.sway_amp, sw.sway_period),
+           (sw.heave_amp, sw.heave_period)]
+    osc_v = sum(amp * 2 * np.pi / per for amp, per in osc)
+    osc_a = sum(amp * (2 * np.pi / per) ** 2 for amp, per in osc)
+    kin, kin_ref = traj.kinematics(t), ref.kinematics(t)
+    v_bound = rho * (Vs + Vm * As) + roundoff(10, Vm + osc_v)
+    assert np.abs(kin.v_n - kin_ref.v_n).max() <= v_bound
+    a_bound = (rho * (dVs + dVm * As + Vs * Rm + Vm * Rs + Vm * Rm * As)
+               + roundoff(20, dVm + Vm * Rm + osc_a))
+    assert np.abs(kin.a_n - kin_ref.a_n).max() <= a_bound
+    dq = rho * (Vs * Rm + Vm * Rs) / G0                  # q = V chi' / g0, roll = atan(q)
+    angle_bound = rho * As + dq + roundoff(10, 2 * np.pi)
+    assert np.abs(wrap_pi(kin.euler - kin_ref.euler)).max() <= angle_bound
+    q_max, dq_max = Vm * Rm / G0, (dVm * Rm + Vm * RRm) / G0
+    d_dq = rho * (dVs * Rm + dVm * Rs + Vs * RRm + Vm * RRs) / G0
+    rate_bound = rho * Rs + d_dq + 2 * q_max * dq_max * dq + roundoff(20, dq_max + Rm + 1.0)
+    assert np.abs(kin.euler_rate - kin_ref.euler_rate).max() <= rate_bound
+    # the position ODE's scalar velocity: the v_n formulas again, in math's libm
+    v_scalar = np.array([traj.velocity(x) for x in t[::7]])
+    assert np.abs(v_scalar - kin_ref.v_n[::7]).max() <= v_bound
+
+    # positions: DOP853 on right-hand sides that differ by round-off. Each accepted step's
+    # estimated local error is <= sqrt(3) (atol + rtol |y|) per component (scipy's RMS norm
+    # over 3 components <= 1) and the position ODE hardly amplifies (d(rate)/d(position)
+    # ~ V / R ~ 1e-6 /s), so each solution is within (steps + 1) such errors of the exact one
+    # (+1: the dense output between steps), and the two within the sum: a solver bound.
+    # 25 s in two chunks (the loop's ODE takes 6 ms a call: the whole run would take 18 s)
+    pos, pos_ref = PositionIntegrator(traj), PositionIntegrator(ref)
+    tg = np.arange(0.0, 25.0, 0.05)
+    y, y_ref = [], []
+    for t_lo, t_hi in ((0.0, 10.0), (10.0, 25.0)):
+        f, f_ref = pos.advance(t_hi), pos_ref.advance(t_hi)
+        inside = (tg >= t_lo) & (tg <= t_hi)
+        y.append(f(tg[inside]))
+        y_ref.append(f_ref(tg[inside]))
+    y, y_ref = np.vstack(y), np.vstack(y_ref)
+    tol = (np.asarray(PositionIntegrator.ATOL)
+           + PositionIntegrator.RTOL * np.abs(np.vstack([y, y_ref])).max(axis=0))
+    bound = np.sqrt(3.0) * (pos.steps + pos_ref.steps + 2) * tol
+    assert np.all(np.abs(y - y_ref).max(axis=0) <= bound)
+    assert np.all(np.abs(pos.y - pos_ref.y) <= bound)
+
+
+def test_trajectory_set_after_use_moves_as_one_built_so_and_pickles_as_its_fields():
+    """Benches and tests set ``heading_deg`` on a scenario's trajectory after building it;
+    the tables derived on first use must follow, and the simulation cache's key (a pickle)
+    must not depend on whether the trajectory was used."""
+    import pickle
+    from dataclasses import replace
+    traj = _manoeuvres(Trajectory)
+    before = pickle.dumps(traj)
+    t = np.arange(0.0, 60.0, 0.1)
+    traj.kinematics(t), traj.velocity(3.0)
+    assert pickle.dumps(traj) == before
+    traj.heading_deg = 100.0
+    fresh = replace(_manoeuvres(Trajectory), heading_deg=100.0)
+    assert np.array_equal(traj.kinematics(t).v_n, fresh.kinematics(t).v_n)
+    assert np.array_equal(traj.velocity(33.3), fresh.velocity(33.3))
