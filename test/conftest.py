@@ -1,8 +1,12 @@
-"""Shared fixtures: a fresh rclpy Context per test on its own DDS domain, data paths."""
+"""Shared fixtures and helpers: an rclpy Context per test on its own DDS domain, data paths,
+node processes (:func:`running`) and the simulator node's messages (:func:`run_simulator`).
+"""
+import contextlib
 import fcntl
 import itertools
 import os
 import signal
+import subprocess
 import tempfile
 import time
 from pathlib import Path
@@ -129,7 +133,7 @@ def interrupt(proc, timeout=15.0):
     """Stop a node process as Ctrl-C does; return ``(exit code, stdout, stderr)``.
 
     A process still alive ``timeout`` seconds after the SIGINT is killed (the test then
-    sees its negative exit code).
+    sees its negative exit code). Nothing is sent to a process that has exited already.
     """
     proc.send_signal(signal.SIGINT)
     try:
@@ -138,3 +142,74 @@ def interrupt(proc, timeout=15.0):
         proc.kill()
         out, err = proc.communicate()
     return proc.returncode, out, err
+
+
+class NodeProcess(subprocess.Popen):
+    """A process of :func:`running`; once stopped, ``out`` and ``err`` hold all it wrote."""
+
+    out = err = None
+
+
+@contextlib.contextmanager
+def running(cmd, domain_id, source_tree=False, timeout=15.0):
+    """Run node process ``cmd`` (argv) on ROS domain ``domain_id`` for a ``with`` block.
+
+    Yields the :class:`NodeProcess` (text pipes; discovery on this machine, unbuffered
+    output). Leaving the block, however it is left, stops the process as Ctrl-C does
+    (:func:`interrupt`: SIGINT, killed ``timeout`` s later if still alive) and closes its
+    pipes; after the block ``returncode``, ``out`` and ``err`` say how it ended. When
+    the block raised, the node's stderr is printed (pytest shows it with the failure).
+    ``source_tree``: this checkout first on PYTHONPATH, so that the node runs the code
+    under test rather than the installed copy.
+    """
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id), PYTHONUNBUFFERED='1',
+               ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    if source_tree:
+        env['PYTHONPATH'] = os.pathsep.join([str(ROOT), os.environ.get('PYTHONPATH', '')])
+    with NodeProcess(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                     text=True) as proc:
+        ok = False
+        try:
+            yield proc
+            ok = True
+        finally:
+            _, proc.out, proc.err = interrupt(proc, timeout)
+            if not ok:
+                print(f'--- stderr of {" ".join(cmd)} (exit code {proc.returncode}) ---\n'
+                      f'{proc.err}')
+
+
+def run_simulator(ctx, **params):
+    """Run a SimulatorNode in ``ctx`` as fast as possible to its end, every topic subscribed.
+
+    ``params``: its parameter overrides (``real_time_factor`` 0 unless given). Returns
+    ``(sc, got, publishers)``: its scenario, topic key (``TOPICS``) -> the messages
+    received, and topic key -> the number of publishers seen on that topic at the end.
+    """
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+    from sins_align_ros.io.sim_messages import TOPICS
+    from sins_align_ros.ros.simulator_node import SimulatorNode, ros_message_class
+    sim = SimulatorNode(context=ctx, parameter_overrides=[
+        Parameter(k, value=v) for k, v in {'real_time_factor': 0.0, **params}.items()])
+    sub = rclpy.create_node('sub', context=ctx)
+    qos = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
+    got = {k: [] for k in TOPICS}
+    for k, (name, typ) in TOPICS.items():
+        sub.create_subscription(ros_message_class(typ), name, got[k].append, qos)
+    ex = SingleThreadedExecutor(context=ctx)
+    ex.add_node(sim)
+    ex.add_node(sub)
+    try:
+        n_imu = int(round(sim.sc.duration / sim.dt))
+        assert spin_until(ex, lambda: sim.done and len(got['imu']) == n_imu, timeout_s=60.0)
+        spin_until(ex, lambda: False, timeout_s=0.3)            # the last GNSS and truth
+        publishers = {k: sub.count_publishers(name) for k, (name, _) in TOPICS.items()}
+        return sim.sc, got, publishers
+    finally:
+        ex.shutdown()
+        sim.destroy_node()
+        sub.destroy_node()

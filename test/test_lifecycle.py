@@ -5,8 +5,6 @@ A client node in the same Context calls ``/alignment_node/change_state`` and
 noise-free IMU (gravity and Earth rate at 34 deg N, a known attitude) and records
 ``imu/data`` and ``/diagnostics``; the transition methods are never called directly.
 """
-import os
-import subprocess
 
 import numpy as np
 import pytest
@@ -23,7 +21,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E
 from sensor_msgs.msg import Imu  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-from conftest import interrupt, spin_until  # noqa: E402
+from conftest import running, spin_until  # noqa: E402
 from sins_align_ros.nav import earth  # noqa: E402
 from sins_align_ros.nav.frames import euler_to_dcm, quat_to_euler  # noqa: E402
 from sins_align_ros.ros.alignment_lifecycle_node import AlignmentLifecycleNode  # noqa: E402
@@ -278,13 +276,9 @@ def test_invalid_parameter_fails_configure_and_changes_are_stored_until_configur
 def test_lifecycle_executable_is_managed_over_its_services_and_exits_on_sigint(
         ros_context, domain_id):
     """`ros2 run sins_align_ros alignment_lifecycle_node`: configure, activate, output, Ctrl-C."""
-    path = resolve_executable('alignment_lifecycle_node')
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id),
-               ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
-    proc = subprocess.Popen([path, '--ros-args', '-p', 'coarse_duration:=1.0',
-                             '-p', 'initial_latitude_deg:=34.0'],
-                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
+    with running([resolve_executable('alignment_lifecycle_node'), '--ros-args',
+                  '-p', 'coarse_duration:=1.0', '-p', 'initial_latitude_deg:=34.0'],
+                 domain_id) as proc:
         c = Client(ros_context, node_name='probe')
         assert spin_until(c.ex, lambda: 'alignment_node' in c.cl.get_node_names(),
                           timeout_s=10.0)
@@ -298,10 +292,5 @@ def test_lifecycle_executable_is_managed_over_its_services_and_exits_on_sigint(
             c.settle(0.1)
         assert spin_until(c.ex, lambda: len(c.out) == 149, timeout_s=10.0)
         assert np.abs(euler_of(c.out[-1]) - RPY).max() < 0.01 * DEG
-        code, out, err = interrupt(proc)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-    assert code == 0, err
-    assert 'Traceback' not in err and 'Traceback' not in out
+    assert proc.returncode == 0, proc.err
+    assert 'Traceback' not in proc.err and 'Traceback' not in proc.out

@@ -14,10 +14,7 @@ The plain node spins in :func:`sins_align_ros.ros.runner.spin`, the executables'
 on the executables' executor (rclpy's EventsExecutor); the executables themselves run as
 processes in two tests, driven by a probe node in the test's Context.
 """
-import os
-import subprocess
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -34,7 +31,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E
 from sensor_msgs.msg import Imu  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-from conftest import interrupt, spin_until  # noqa: E402
+from conftest import running, spin_until  # noqa: E402
 from sins_align_ros.ros.alignment_lifecycle_node import _TRANSITIONS  # noqa: E402
 from sins_align_ros.ros.alignment_node import AlignmentNode  # noqa: E402
 from sins_align_ros.ros.runner import spin  # noqa: E402
@@ -43,7 +40,6 @@ from test_lifecycle import PARAMS, RELIABLE, RPY, euler_of, make, still_imu  # n
 from test_package import resolve_executable  # noqa: E402
 
 pytestmark = pytest.mark.ros
-ROOT = Path(__file__).resolve().parents[1]
 WARN, ERROR = DiagnosticStatus.WARN, DiagnosticStatus.ERROR
 LATCHED_LOG = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -272,28 +268,16 @@ def test_an_exception_in_a_callback_is_logged_counted_and_restarts_the_alignment
         rig.close()
 
 
-def _start(exe, domain_id, *params):
-    """Start executable ``exe`` of the source tree (PYTHONPATH) on ``domain_id``."""
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id), PYTHONUNBUFFERED='1',
-               ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
-               PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get('PYTHONPATH', '')]))
+def _running(exe, domain_id, *params):
+    """Run executable ``exe`` of the source tree with ``-p`` ``params`` (conftest.running)."""
     args = [a for p in params for a in ('-p', p)]
-    return subprocess.Popen([resolve_executable(exe), '--ros-args', *args], env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-
-
-def _stop(proc):
-    """SIGINT the process; return (exit code, stderr)."""
-    assert proc.poll() is None, proc.communicate()
-    code, _, err = interrupt(proc)
-    return code, err
+    return running([resolve_executable(exe), '--ros-args', *args], domain_id, source_tree=True)
 
 
 def test_executable_survives_reset_and_clock_jump(ros_context, domain_id):
     """`alignment_node` as a process: it used to exit with 2 here."""
-    proc = _start('alignment_node', domain_id, 'coarse_duration:=1.0',
-                  'initial_latitude_deg:=34.0', 'diagnostic_period:=0.2')
-    try:
+    with _running('alignment_node', domain_id, 'coarse_duration:=1.0',
+                  'initial_latitude_deg:=34.0', 'diagnostic_period:=0.2') as proc:
         c_node = rclpy.create_node('probe', context=ros_context)
         pub = c_node.create_publisher(Imu, 'imu/data_raw', RELIABLE)
         diag = []
@@ -320,9 +304,9 @@ def test_executable_survives_reset_and_clock_jump(ros_context, domain_id):
             diag
         spin_until(ex, lambda: False, timeout_s=0.5)
         ex.shutdown()
-    finally:
-        code, err = _stop(proc)
-    assert code == 0, err
+        assert proc.poll() is None                 # alive until the Ctrl-C
+    err = proc.err
+    assert proc.returncode == 0, err
     # (rclpy's EventsExecutor may log FATAL for a timer that fires on the context SIGINT
     # just shut down; that is after the run, and the exit code is still 0)
     assert 'Traceback' not in err and 'Logger severity' not in err, err
@@ -333,16 +317,15 @@ def test_executable_survives_reset_and_clock_jump(ros_context, domain_id):
 def test_lifecycle_executable_refuses_a_second_configure_and_lives(ros_context, domain_id):
     """`alignment_lifecycle_node` as a process: it used to exit with 1 here."""
     from test_lifecycle import Client
-    proc = _start('alignment_lifecycle_node', domain_id, 'initial_latitude_deg:=34.0')
-    try:
+    with _running('alignment_lifecycle_node', domain_id, 'initial_latitude_deg:=34.0') as proc:
         c = Client(ros_context, node_name='probe')
         assert c.transition(T.TRANSITION_CONFIGURE)
         assert not c.transition(T.TRANSITION_CONFIGURE)
         assert c.state() == 'inactive'
         assert c.transition(T.TRANSITION_ACTIVATE) and c.state() == 'active'
         c.ex.shutdown()
-    finally:
-        code, err = _stop(proc)
-    assert code == 0, err
+        assert proc.poll() is None                 # alive until the Ctrl-C
+    err = proc.err
+    assert proc.returncode == 0, err
     assert 'Traceback' not in err and 'RCLError' not in err, err
     assert "transition configure (1) refused: not possible from state 'inactive'" in err, err

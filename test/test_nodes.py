@@ -19,7 +19,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus  # noqa: E402
 
-from conftest import interrupt, spin_until  # noqa: E402
+from conftest import running, spin_until  # noqa: E402
 from sins_align_ros.nav import earth  # noqa: E402
 from sins_align_ros.nav.frames import (euler_to_dcm, nav_to_euler,  # noqa: E402
                                        quat_to_euler)
@@ -437,24 +437,15 @@ def test_config_files_load_into_the_nodes(path, domain_id):
 @pytest.mark.parametrize('exe', ['alignment_node', 'simulator_node'])
 def test_executables_start_and_exit_cleanly_on_sigint(exe, ros_context, domain_id):
     """`ros2 run sins_align_ros EXE` then Ctrl-C: exit code 0, no traceback."""
-    path = resolve_executable(exe)
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id),
-               ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
-    proc = subprocess.Popen([path], env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
     probe = rclpy.create_node('probe', context=ros_context)
-    try:
+    with running([resolve_executable(exe)], domain_id) as proc:
         end = time.monotonic() + 30.0
         while exe not in probe.get_node_names() and time.monotonic() < end:
-            assert proc.poll() is None, proc.communicate()
+            assert proc.poll() is None
             time.sleep(0.1)
         assert exe in probe.get_node_names()
-        code, out, err = interrupt(proc)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    assert code == 0, err
-    assert 'Traceback' not in err and 'Traceback' not in out
+    assert proc.returncode == 0, proc.err
+    assert 'Traceback' not in proc.err and 'Traceback' not in proc.out
 
 
 @pytest.mark.parametrize('exe', ['alignment_node', 'alignment_lifecycle_node'])

@@ -15,7 +15,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from conftest import ROOT, interrupt
+from conftest import ROOT, running
 from sins_align_ros.align import params as prm
 from sins_align_ros.cli.replay import _truth_euler, load_parameters, replay_bag
 from sins_align_ros.cli.replay import main as replay
@@ -143,21 +143,12 @@ def test_alignment_node_executable_warns_and_takes_an_integer(tmp_path, domain_i
     typos, wrong = tmp_path / 'typos.yaml', tmp_path / 'wrong.yaml'
     typos.write_text(TYPOS)
     wrong.write_text(WRONG_NODE)
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id), PYTHONUNBUFFERED='1',
-               ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
-               PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get('PYTHONPATH', '')]))
-    proc = subprocess.Popen([resolve_executable('alignment_node'), '--ros-args',
-                             '--params-file', str(typos), '--params-file', str(wrong),
-                             '-p', 'coarse_duration:=60'],
-                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
+    with running([resolve_executable('alignment_node'), '--ros-args',
+                  '--params-file', str(typos), '--params-file', str(wrong),
+                  '-p', 'coarse_duration:=60'], domain_id, source_tree=True) as proc:
         time.sleep(8.0)
-        assert proc.poll() is None, proc.communicate()
-        code, out, err = interrupt(proc)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+        assert proc.poll() is None
+    code, out, err = proc.returncode, proc.out, proc.err
     assert code == 0, err
     assert "(did you mean 'fine_filter'?)" in err, err
     assert f'params file {wrong}: no entry for this node /alignment_node' in err, err

@@ -6,7 +6,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from conftest import spin_until
+from conftest import run_simulator
 from sins_align_ros.io.sim_messages import TOPICS, SimulatedMessages, topics
 from sins_align_ros.sim.gnss import GnssErrors, GnssSpec
 from sins_align_ros.sim.imu import ImuErrors, ImuSpec
@@ -188,34 +188,9 @@ def test_recorded_position_only_bag_has_no_vel_topic(tmp_path):
 def test_simulator_node_publishes_no_gnss_vel_for_a_position_only_receiver(ros_context):
     """Over DDS: robot_skid's node has no gnss/vel publisher and nothing arrives there;
     gnss/fix arrives at 2.5 Hz, the IMU at 30 Hz."""
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.parameter import Parameter
-    from rclpy.qos import QoSProfile, ReliabilityPolicy
-
-    from sins_align_ros.ros.simulator_node import SimulatorNode, ros_message_class
-    sim = SimulatorNode(context=ros_context, parameter_overrides=[
-        Parameter('scenario', value='robot_skid'), Parameter('duration', value=4.0),
-        Parameter('real_time_factor', value=0.0)])
-    sub = rclpy.create_node('sub', context=ros_context)
-    qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
-    got = {k: [] for k in TOPICS}
-    for k, (name, typ) in TOPICS.items():
-        sub.create_subscription(ros_message_class(typ), name, got[k].append, qos)
-    ex = SingleThreadedExecutor(context=ros_context)
-    ex.add_node(sim)
-    ex.add_node(sub)
-    try:
-        assert spin_until(ex, lambda: sim.done and len(got['imu']) == 120, timeout_s=60.0)
-        spin_until(ex, lambda: False, timeout_s=0.3)
-        assert 'vel' not in sim.pubs
-        assert sub.count_publishers('/gnss/vel') == 0
-        assert sub.count_publishers('/gnss/fix') == 1
-        assert len(got['fix']) == 10 and got['vel'] == []
-    finally:
-        ex.shutdown()
-        sim.destroy_node()
-        sub.destroy_node()
+    _, got, publishers = run_simulator(ros_context, scenario='robot_skid', duration=4.0)
+    assert publishers == {'imu': 1, 'fix': 1, 'vel': 0, 'truth': 1}
+    assert len(got['imu']) == 120 and len(got['fix']) == 10 and got['vel'] == []
 
 
 def _kinematics(name, step=0.1):

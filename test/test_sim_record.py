@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from conftest import ROOT, spin_until
+from conftest import ROOT, run_simulator
 from sins_align_ros.align.output import Output
 from sins_align_ros.align.session import AlignmentSession
 from sins_align_ros.cli.record import main as record
@@ -52,34 +52,6 @@ def _raw_messages(bag):
     return out
 
 
-def _run_simulator(ctx, **params):
-    """Run a SimulatorNode as fast as possible to its end; topic key -> messages received."""
-    import rclpy
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.parameter import Parameter
-    from rclpy.qos import QoSProfile, ReliabilityPolicy
-
-    from sins_align_ros.ros.simulator_node import SimulatorNode, ros_message_class
-    sim = SimulatorNode(context=ctx, parameter_overrides=[
-        Parameter(k, value=v) for k, v in {'real_time_factor': 0.0, **params}.items()])
-    sub = rclpy.create_node('sub', context=ctx)
-    qos = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
-    got = {k: [] for k in TOPICS}
-    for k, (name, typ) in TOPICS.items():
-        sub.create_subscription(ros_message_class(typ), name, got[k].append, qos)
-    ex = SingleThreadedExecutor(context=ctx)
-    ex.add_node(sim)
-    ex.add_node(sub)
-    n_imu = int(round(sim.sc.duration / sim.dt))
-    assert spin_until(ex, lambda: sim.done and len(got['imu']) == n_imu, timeout_s=60.0)
-    spin_until(ex, lambda: False, timeout_s=0.3)                # the last GNSS and truth
-    ex.shutdown()
-    sc = sim.sc
-    sim.destroy_node()
-    sub.destroy_node()
-    return sc, got
-
-
 def _white_noise(msgs, field):
     """Per-sample white-noise sigma of a still IMU's rate or specific force, from differences."""
     x = np.array([[getattr(m, field).x, getattr(m, field).y, getattr(m, field).z]
@@ -99,8 +71,8 @@ def test_grade_parameter_sets_the_published_noise_and_the_bag_holds_the_same_mes
     dt = 0.01
     sims = {}
     for grade in ('', 'mems'):
-        sims[grade] = _run_simulator(ros_context, scenario='static_navigation', grade=grade,
-                                     duration=30.0, seed=7, start_time=START)
+        sims[grade] = run_simulator(ros_context, scenario='static_navigation', grade=grade,
+                                    duration=30.0, seed=7, start_time=START)[:2]
     assert sims[''][0].imu is SENSOR_GRADES['navigation']
     assert sims['mems'][0].imu is SENSOR_GRADES['mems']
     for grade, (sc, got) in sims.items():
