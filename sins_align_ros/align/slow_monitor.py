@@ -153,6 +153,8 @@ class SlowErrorMonitor:
         self.n_judged = 0
         self.n_disagree = 0
         self.n_failures = 0
+        #: stamps of the epochs at which the failures were found
+        self.failed_at = []
         #: what the last failure found (its reason while failing)
         self.finding = ''
         #: ``(var_phi, factor)`` the fine stage is to apply now (:meth:`remedy`), or None
@@ -187,7 +189,7 @@ class SlowErrorMonitor:
         if leg is not None and (not straight or abs(wrap(yaw - leg.yaw0)) > STRAIGHT
                                 or t - leg.t0 > MAX_LEG_S):
             self.leg = None
-            due = self._judge(leg)
+            due = self._judge(leg, t)
             if straight:
                 self._join(t, yaw, var_h, fix)
             return due
@@ -214,8 +216,8 @@ class SlowErrorMonitor:
                 leg.course.append(math.atan2(v[1], v[0]))
                 leg.var_c.append(vv / (sp * sp))
 
-    def _judge(self, leg):
-        """Judge a finished leg; return True when a remedy is due."""
+    def _judge(self, leg, t):
+        """Judge a finished leg at the epoch ``t`` that ended it; return True when a remedy is due."""
         if len(leg.t) < MIN_EPOCHS or leg.duration < MIN_LEG_S:
             return False
         res = leg.difference()
@@ -243,6 +245,7 @@ class SlowErrorMonitor:
         if not disagrees:
             return False
         self.n_failures += 1
+        self.failed_at.append(t)
         zs = [z for _, z in self._pending]
         self.finding = (f'heading {math.degrees(D):+.1f} deg from the GNSS course on '
                         f'{len(zs)} straight legs running ({min(map(abs, zs)):.1f}-'
