@@ -83,7 +83,8 @@ class MotionCheck:
         self.misalignment = float(misalignment)
         self.window_s = float(window_s)
         self._t, self._w, self._f, self._dt = [], [], [], []
-        self._span = 0.0
+        #: start of the first interval kept (s), None with nothing kept
+        self._t0 = None
         #: parameter name -> value (datasheet units) widened in motion
         self.widened = {}
         #: findings not yet reported (:meth:`take_findings`), and all of them
@@ -98,18 +99,22 @@ class MotionCheck:
         if not len(dt):
             return
         d = np.maximum(dt, 1e-6)[:, None]
-        self._t.append(np.asarray(t, dtype=float).reshape(-1))
+        t = np.asarray(t, dtype=float).reshape(-1)
+        if self._t0 is None:
+            self._t0 = float(t[0] - dt[0])
+        self._t.append(t)
         self._w.append(np.asarray(dtheta, dtype=float).reshape(-1, 3) / d)
         self._f.append(np.asarray(dv, dtype=float).reshape(-1, 3) / d)
         self._dt.append(dt)
-        self._span += float(np.sum(dt))
 
     def epoch(self, t_now, engine):
         """At a GNSS epoch at ``t_now``: judge the samples up to it if they fill a window.
 
         Widens ``engine`` where the data show more than the model; returns True if it did.
         """
-        if self._span < self.window_s or not self._t:
+        # (stamps rise: the samples up to t_now span at most t_now - t0, so the arrays are
+        # joined once a window, however far ahead of the epochs a block was pushed)
+        if self._t0 is None or t_now - self._t0 < self.window_s:
             return False
         t = np.concatenate(self._t)
         n = int(np.searchsorted(t, t_now, side='right'))
@@ -118,7 +123,7 @@ class MotionCheck:
             return False
         w, f = np.concatenate(self._w), np.concatenate(self._f)
         self._t, self._w, self._f, self._dt = [t[n:]], [w[n:]], [f[n:]], [dt[n:]]
-        self._span = float(np.sum(dt[n:]))
+        self._t0 = float(t[n - 1]) if n < len(t) else None
         return self._judge(w[:n], f[:n], float(np.mean(dt[:n])), engine)
 
     def _judge(self, w, f, dt, engine):
