@@ -16,7 +16,7 @@ from sins_align_ros.eval.integrity import run_integrity
 from sins_align_ros.eval.run import run_scenario
 from sins_align_ros.models.stationary import NoiseSpec
 from sins_align_ros.sim.presets import scenario, starting_still
-from sins_align_ros.units import DEG, DPSH, UG
+from sins_align_ros.units import DPSH, UG
 
 DT = 0.01
 

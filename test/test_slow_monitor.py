@@ -28,7 +28,7 @@ LAT0, LON0 = math.radians(48.0), math.radians(11.0)
 
 
 class Drive:
-    """Feeds a monitor the epochs of a vehicle at ``speed`` whose published yaw is off by ``offset``."""
+    """Feed a monitor the epochs of a vehicle at ``speed``, its shown yaw off by ``offset``."""
 
     def __init__(self, mon, speed=10.0, var_h=math.radians(0.1) ** 2, velocity=True):
         self.mon, self.speed, self.var_h, self.velocity = mon, speed, var_h, velocity
@@ -38,8 +38,9 @@ class Drive:
     def _epoch(self, offset):
         v = self.speed * np.array([math.cos(self.yaw), math.sin(self.yaw), 0.0])
         R_M, R_N = earth.radii(LAT0)
-        fix = GnssFix(self.t, LAT0 + self.pos[1] / R_M, LON0 + self.pos[0] / (R_N * math.cos(LAT0)),
-                      0.0, v if self.velocity else None)
+        fix = GnssFix(self.t, LAT0 + self.pos[1] / R_M,
+                      LON0 + self.pos[0] / (R_N * math.cos(LAT0)), 0.0,
+                      v if self.velocity else None)
         C = euler_to_dcm((0.0, 0.0, self.yaw + offset))
         if self.mon.add(self.t, C, v, self.var_h, fix):
             self.dues.append((self.t, self.mon.due))

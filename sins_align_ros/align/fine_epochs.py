@@ -4,10 +4,13 @@ A mixin of :class:`~.fine_stage.FineStage`: at the sample an epoch is due at, th
 queued fixes (moved from the antenna to the IMU, :mod:`.installation`) and then the
 external headings go to the engine; after each GNSS update the consistency monitor
 (:class:`~.consistency.ConsistencyMonitor`) is given its innovations and its remedy is
-applied, and the under-way mounting check (:mod:`.sideslip`) the fix's velocity. A
-filter failure (:class:`~.gnss_gate.FilterDiverged`) comes back as its reason. Uses the
-stage's ``engine``, ``t0``, ``install``, ``headings``, ``consistency``, ``sideslip``,
-``slow``, ``motion_check``, ``heading_known``, ``attitude_cov()``, ``rate_var()`` and ``_epoch_done()``.
+applied, and the under-way mounting check (:mod:`.sideslip`) the fix's velocity; the
+slow-error monitor (:mod:`.slow_monitor`) takes each accepted epoch and the self-check in
+motion (:mod:`.motion_check`) judges the IMU samples up to it, each opening the engine's
+model where the data disagree. A filter failure (:class:`~.gnss_gate.FilterDiverged`)
+comes back as its reason. Uses the stage's ``engine``, ``t0``, ``install``, ``headings``,
+``consistency``, ``sideslip``, ``slow``, ``motion_check``, ``heading_known``,
+``attitude_cov()``, ``rate_var()`` and ``_epoch_done()``.
 """
 import numpy as np
 
@@ -18,7 +21,7 @@ class EpochUpdates:
     """GNSS and external-heading epochs of the fine stage (a mixin; module docstring)."""
 
     def monitor_findings(self):
-        """New findings of the slow-error monitor and the motion check (WARN texts)."""
+        """Return the new findings of the slow-error monitor and the motion check (WARNs)."""
         return [w for mon in (self.slow, self.motion_check) if mon is not None
                 for w in mon.take_findings()]
 
@@ -73,7 +76,7 @@ class EpochUpdates:
             self._att_cov = None
 
     def _watch_slow(self, t_now, fix):
-        """Give the slow-error monitor (:mod:`.slow_monitor`) an accepted epoch; apply its remedy."""
+        """Give the slow-error monitor (:mod:`.slow_monitor`) an accepted epoch; apply a remedy."""
         if (self.slow is None or self.mounting_doubt or not self.heading_known
                 or self.engine.kf.rejected):
             return

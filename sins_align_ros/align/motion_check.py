@@ -94,7 +94,10 @@ class MotionCheck:
         self.n_windows = 0
 
     def push(self, t, dtheta, dv, dt):
-        """Keep samples: stamps ``t`` (N,), increments ``dtheta``, ``dv`` (N, 3), intervals ``dt``."""
+        """Keep samples: stamps ``t`` (N,), increments ``dtheta``, ``dv`` (N, 3), intervals ``dt``.
+
+        They are judged at the GNSS epochs that follow them (:meth:`epoch`).
+        """
         dt = np.asarray(dt, dtype=float).reshape(-1)
         if not len(dt):
             return
@@ -192,7 +195,7 @@ class MotionCheck:
 
 
 def for_stage(engine, cfg, noise):
-    """The motion check of a fine stage running ``engine`` (None: still base, self-check off)."""
+    """Return the motion check of a fine stage running ``engine`` (None: still base, no check)."""
     if engine.restages or not cfg['sensor_self_check'] or noise is None:
         return None
     return MotionCheck(noise, cfg['gyro_scale_factor_ppm'] * 1e-6,

@@ -205,7 +205,8 @@ class SlowErrorMonitor:
         leg.yaw.append(yaw)
         leg.var_h.append(var_h)
         leg.pos.append((fix.lat, fix.lon, fix.h))
-        pv = self.pos_var if fix.pos_var is None else max(self.pos_var, float(np.mean(fix.pos_var)))
+        pv = (self.pos_var if fix.pos_var is None
+              else max(self.pos_var, float(np.mean(fix.pos_var))))
         leg.pos_var.append(pv)
         if fix.v_n is not None:
             v = np.asarray(fix.v_n, dtype=float)
@@ -217,7 +218,7 @@ class SlowErrorMonitor:
                 leg.var_c.append(vv / (sp * sp))
 
     def _judge(self, leg, t):
-        """Judge a finished leg at the epoch ``t`` that ended it; return True when a remedy is due."""
+        """Judge a finished leg at the epoch ``t`` that ended it; True: a remedy is due."""
         if len(leg.t) < MIN_EPOCHS or leg.duration < MIN_LEG_S:
             return False
         res = leg.difference()
@@ -297,7 +298,7 @@ class SlowErrorMonitor:
 
 
 def for_stage(engine, cfg):
-    """The monitor of a fine stage running ``engine`` with parameters ``cfg``, or None.
+    """Return the monitor of a fine stage running ``engine`` with parameters ``cfg``, or None.
 
     None for the still-base engines (no legs) and with ``slow_monitor_legs`` 0.
     """
