@@ -14,7 +14,8 @@ import pytest
 from sins_align_ros.align import slow_monitor
 from sins_align_ros.align.aided import GnssFix
 from sins_align_ros.align.slow_monitor import MAX_LEG_S, SlowErrorMonitor
-from sins_align_ros.eval.integrity import published_sigma, run_integrity
+from sins_align_ros.eval.integrity import (MAX_OUTSIDE, outside_shares, published_sigma,
+                                           run_integrity)
 from sins_align_ros.eval.run import run_pipeline
 from sins_align_ros.eval.scenarios import simulate
 from sins_align_ros.nav import earth
@@ -80,7 +81,7 @@ def test_a_leg_is_judged_by_the_closed_form_and_an_honest_heading_never_fails():
     n = d.straight(20.0, offset)
     d.turn(offset)
     assert mon.n_judged == 1
-    t, D, sigma, z = mon.judged[-1]
+    t, D, sigma, z, _ = mon.judged[-1]
     # the course is the true yaw: course minus the published yaw is minus the offset
     assert D == pytest.approx(-offset, abs=1e-9)
     assert sigma == pytest.approx(_leg_sigma(mon, n, d.var_h, d.speed), rel=1e-9)
@@ -106,12 +107,16 @@ def test_a_persistent_excess_fails_after_the_legs_and_agreeing_legs_end_it():
         assert mon.failing == (k == legs - 1)
     assert mon.n_failures == 1 and 'GNSS course' in mon.reason and '-4.0 deg' in mon.reason
     # the remedy: each misalignment variance gets the difference squared, the state the
-    # legs' mean excess over the bound, squared (z^2 / k^2), at most MAX_INFLATION
-    (t_due, (var_phi, factor)), = d.dues
+    # legs' mean excess over the bound, squared (z^2 / k^2), at most MAX_INFLATION, and the
+    # gyro drift the random walk that reaches |D| / T within the legs' span T
+    (t_due, (var_phi, factor, q_drift)), = d.dues
     zs = [j[3] for j in mon.judged]
     assert var_phi == pytest.approx(off ** 2, rel=1e-9)
     assert factor == pytest.approx(min(np.mean(np.square(zs)) / 9.0,
                                        slow_monitor.MAX_INFLATION), rel=1e-12)
+    span = mon.judged[-1][0] - mon.judged[0][4]
+    assert span == pytest.approx(3 * 20.0 + 2 * 6.0 - 0.2, rel=1e-9)   # first epoch: no leg
+    assert q_drift == pytest.approx(off ** 2 / span ** 3, rel=1e-9)
     assert mon.take_findings() == [mon.finding] and mon.take_findings() == []
     # the heading agrees again (the filter was opened and took the course): the failure
     # ends at the third agreeing leg
@@ -150,7 +155,7 @@ def test_position_only_course_from_the_legs_displacement():
     off = math.radians(2.0)
     n = d.straight(20.0, off)
     d.turn(off)
-    t, D, sigma, z = mon.judged[-1]
+    t, D, sigma, z, _ = mon.judged[-1]
     k = n // 3
     length = d.speed * (n - k) / RATE     # mean of the last third less that of the first
     assert D == pytest.approx(-off, abs=1e-6)
@@ -160,6 +165,21 @@ def test_position_only_course_from_the_legs_displacement():
     d.straight(3.0, off)
     d.turn(off)
     assert mon.n_judged == 1
+
+
+def test_the_drift_noise_raised_for_good():
+    class Eng:
+        i_eps = slice(3, 6)
+
+        def __init__(self):
+            self.Qc = np.array([1.0, 1.0, 1.0, 0.0, 2e-9, 0.0, 0.0])
+            self._Qc0 = self.Qc.copy()
+            self._held = self._Qc0 <= 0.0
+    eng = Eng()
+    slow_monitor.raise_drift_noise(eng, 1e-9)
+    assert np.array_equal(eng.Qc, [1.0, 1.0, 1.0, 1e-9, 2e-9, 1e-9, 0.0])
+    assert np.array_equal(eng._Qc0, eng.Qc)
+    assert np.array_equal(eng._held, [False] * 6 + [True])
 
 
 def test_slow_or_turning_epochs_make_no_leg_and_the_monitor_can_be_off():
@@ -209,7 +229,7 @@ def drift():
     return sc, simulate(sc, SEED)
 
 
-def _run(drift, gyro_bias_dph):
+def _run(drift, gyro_bias_dph, **overrides):
     sc, data = drift
     seen = []
 
@@ -219,7 +239,8 @@ def _run(drift, gyro_bias_dph):
             seen.append((p.t_last, p.phase, f.why_not_aligned()))
 
     run = run_pipeline(alignment_params(sc, 'kf', coarse_duration=30.0,
-                                        gyro_bias_dph=gyro_bias_dph), data, callback=record)
+                                        gyro_bias_dph=gyro_bias_dph, **overrides), data,
+                       callback=record)
     return run, seen
 
 
@@ -261,6 +282,20 @@ def test_an_untold_bias_leaves_aligned_with_the_reason_and_comes_back(drift):
     assert any('from the GNSS course' in text for lvl, text in p.conditions() if lvl == 1)
     st = p.status()
     assert st['slow_monitor_failures'] == mon.n_failures and st['slow_monitor_legs_judged'] > 10
+    # the drift the model lacked is in it for good: the gyro-drift process noise is raised
+    # above the model's (the same run with the monitor off) and relaxing keeps it
+    eng = p.fine.engine
+    off, _ = _run(drift, 1.0, slow_monitor_legs=0)
+    model = off.pipeline.fine.engine._Qc0[eng.i_eps]
+    assert np.all(eng._Qc0[eng.i_eps] > 10.0 * model)
+    assert np.all(eng.Qc[eng.i_eps] >= eng._Qc0[eng.i_eps])
+    # so after the first failure the heading is claimed: at most the rule's 5 % of the 1-s
+    # rows outside 3 sigma (without the monitor: most of them)
+    rows = np.arange(i_fail, len(out.t), 100)
+    share = outside_shares(run.phi(rows), published_sigma(out.P_phi[rows]))[2]
+    assert share <= MAX_OUTSIDE
+    rows_off = np.arange(i_fail, len(off.out.t), 100)
+    assert outside_shares(off.phi(rows_off), published_sigma(off.out.P_phi[rows_off]))[2] > 0.5
 
 
 def test_no_alarm_when_the_filter_is_told_the_bias(drift):
