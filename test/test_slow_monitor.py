@@ -305,3 +305,16 @@ def test_no_alarm_when_the_filter_is_told_the_bias(drift):
     assert mon.n_disagree == 0 and mon.n_failures == 0      # ...and none disagreed
     r = run_integrity(run, 100)
     assert not r['silent'] and r['phase'] == 'aligned'
+
+
+@pytest.mark.parametrize('name, fine_filter, duration', [('ship_underway', 'kf', 300.0),
+                                                         ('ship_underway', 'asckf', 300.0),
+                                                         ('car_rtk', 'auto', 240.0)])
+def test_honest_ship_and_rtk_car_runs_raise_no_alarm(name, fine_filter, duration):
+    """Told their sensors: legs are judged (the ship's heading sways less than the straightness
+    bound; the car drives its route) and none disagrees (30 runs of 10 scenarios x filters, 3
+    seeds each, showed none either; docs/alignment_node.md)."""
+    from sins_align_ros.eval.run import run_scenario
+    run = run_scenario(name, 7, fine_filter, duration=duration)
+    mon = run.pipeline.fine.slow
+    assert mon.n_judged >= 3 and mon.n_disagree == 0 and mon.n_failures == 0
