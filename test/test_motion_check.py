@@ -119,6 +119,13 @@ def test_turns_take_the_scale_factors_of_the_gyros_class(gyro_dpsh, mems):
         assert chk.widened['gyro_misalignment_ppm'] == pytest.approx(5000.0)
     else:                                       # tactical class: none
         assert eng.rotation is None and scale == 0.0
+    # a tactical gyro whose window is noisy from vibration keeps its class's (none)
+    model = NoiseSpec(0.0, 0.05 * DPSH, 0.0, 120.0 * UG)
+    chk, eng = MotionCheck(model), Engine(model)
+    t, dth, dv, dt = _samples(n, 2.0 * DPSH, 120.0 * UG, rate=1.5 * TURN_RATE)
+    chk.push(t, dth, dv, dt)
+    assert chk.epoch(t[-1], eng) and 'gyro_arw_dpsh' in chk.widened
+    assert eng.rotation is None
     # without a turn, a MEMS gyro keeps the model's (none here)
     chk, eng = MotionCheck(NoiseSpec(0.0, 0.4 * DPSH, 0.0, 120.0 * UG)), Engine(model)
     t, dth, dv, dt = _samples(n, 0.4 * DPSH, 120.0 * UG, rate=0.5 * TURN_RATE)

@@ -22,7 +22,11 @@ checked as the coarse self-check checks a moving base, with its estimators:
   the scale factors and axis misalignment of the class the gyro noise shows
   (:data:`~.self_check.SCALE_BY_GYRO_NOISE`: 2 % and 0.5 % for MEMS triads, none for the
   tactical and navigation classes) then replace the model's where larger
-  (``engine.set_rotation_error``, :mod:`.rotation_error`).
+  (``engine.set_rotation_error``, :mod:`.rotation_error`). The class is that of the
+  smaller of the window's noise and the model's at the start of the stage (as the coarse
+  self-check left it): vibration makes a tactical gyro on a vibrating chassis look like a
+  MEMS one in motion, and its scale factors are still a tactical gyro's. (The coarse
+  self-check on a moving base classes by the noise it sees, vibration included.)
 
 Never narrowed; each widening is a finding (a WARN on ``/diagnostics`` once, and the
 figures ``motion_check_*``). The windows are evaluated at the GNSS epoch that follows
@@ -79,6 +83,8 @@ class MotionCheck:
 
     def __init__(self, noise, scale=0.0, misalignment=0.0, window_s=WINDOW_S):
         self.noise = noise
+        #: the gyro noise the grade is judged by at most (the model's at the start), rad/sqrt(s)
+        self.class_arw = noise.gyro_arw
         self.scale = float(scale)
         self.misalignment = float(misalignment)
         self.window_s = float(window_s)
@@ -160,14 +166,15 @@ class MotionCheck:
             self.noise = replace(self.noise, accel_vrw=vrw)
             did = True
         if rate >= TURN_RATE:
-            scale, mis = (v * 1e-6 for v in class_value(SCALE_BY_GYRO_NOISE, arw / DPSH))
+            grade = min(arw, self.class_arw) / DPSH
+            scale, mis = (v * 1e-6 for v in class_value(SCALE_BY_GYRO_NOISE, grade))
             if scale > self.scale or mis > self.misalignment:
                 self.scale, self.misalignment = max(scale, self.scale), max(mis,
                                                                             self.misalignment)
                 engine.set_rotation_error(self.scale, self.misalignment)
                 self._found('gyro_scale_factor_ppm', self.scale * 1e6,
                             f'turns at up to {rate / DEG:.0f} deg/s with a gyro of the MEMS '
-                            f'class ({arw / DPSH:.3g} deg/sqrt(h)): gyro_scale_factor_ppm '
+                            f'class ({grade:.3g} deg/sqrt(h)): gyro_scale_factor_ppm '
                             f'{self.scale * 1e6:.3g} and gyro_misalignment_ppm '
                             f'{self.misalignment * 1e6:.3g} taken in the running filter (a '
                             f'90 deg turn: {self.scale * 90:.2g} deg of heading)')
