@@ -12,7 +12,10 @@ stationary filter (up to ``max_stages``) or turns ``fine`` into ``aligned``.
 
 The GNSS-aided engines' innovations are checked against their covariance
 (:class:`~.consistency.ConsistencyMonitor`); an inconsistent filter has its covariance
-inflated and is not ``aligned`` until the test passes again.
+inflated and is not ``aligned`` until the test passes again. Their heading is also held
+against the GNSS course on straight legs (:mod:`.slow_monitor`: a slow model error the
+innovations do not show), and their IMU samples against the sensor model while the vehicle
+moves (:mod:`.motion_check`: vibration and turns the coarse window did not show).
 
 ``aligned`` means good enough for the user (DESIGN.md: the attitude meets the user's
 thresholds and the consistency checks pass): the roll/pitch and heading 1-sigma must be
