@@ -4,10 +4,13 @@ A mixin of :class:`~.fine_stage.FineStage`: at the sample an epoch is due at, th
 queued fixes (moved from the antenna to the IMU, :mod:`.installation`) and then the
 external headings go to the engine; after each GNSS update the consistency monitor
 (:class:`~.consistency.ConsistencyMonitor`) is given its innovations and its remedy is
-applied, and the under-way mounting check (:mod:`.sideslip`) the fix's velocity. A
-filter failure (:class:`~.gnss_gate.FilterDiverged`) comes back as its reason. Uses the
-stage's ``engine``, ``t0``, ``install``, ``headings``, ``consistency``, ``sideslip``,
-``heading_known``, ``attitude_cov()``, ``rate_var()`` and ``_epoch_done()``.
+applied, and the under-way mounting check (:mod:`.sideslip`) the fix's velocity; the
+slow-error monitor (:mod:`.slow_monitor`) takes each accepted epoch and the self-check in
+motion (:mod:`.motion_check`) judges the IMU samples up to it, each opening the engine's
+model where the data disagree. A filter failure (:class:`~.gnss_gate.FilterDiverged`)
+comes back as its reason. Uses the stage's ``engine``, ``t0``, ``install``, ``headings``,
+``consistency``, ``sideslip``, ``slow``, ``motion_check``, ``heading_known``,
+``attitude_cov()``, ``rate_var()`` and ``_epoch_done()``.
 """
 import numpy as np
 
@@ -16,6 +19,19 @@ from .gnss_gate import FilterDiverged
 
 class EpochUpdates:
     """GNSS and external-heading epochs of the fine stage (a mixin; module docstring)."""
+
+    def monitor_findings(self):
+        """Return the new findings of the slow-error monitor and the motion check (WARNs)."""
+        return [w for mon in (self.slow, self.motion_check) if mon is not None
+                for w in mon.take_findings()]
+
+    def monitor_status(self):
+        """Diagnostics figures of the slow-error monitor and the motion check."""
+        s = {}
+        for mon in (self.slow, self.motion_check):
+            if mon is not None:
+                s.update(mon.status())
+        return s
 
     def _heading_due_index(self, t, k):
         """Index of the sample of ``t`` (from ``k``) an external heading is due at, or None."""
@@ -59,12 +75,25 @@ class EpochUpdates:
             self.mounting_doubt = doubt
             self._att_cov = None
 
+    def _watch_slow(self, t_now, fix):
+        """Give the slow-error monitor (:mod:`.slow_monitor`) an accepted epoch; apply a remedy."""
+        if (self.slow is None or self.mounting_doubt or not self.heading_known
+                or self.engine.kf.rejected):
+            return
+        m = self.engine.mech
+        self._att_cov = None
+        if self.slow.add(t_now, m.C_b_n, m.v_n, self.attitude_cov()[2, 2], fix):
+            self.slow.remedy(self.engine)
+            self._att_cov = None
+
     def _apply_gnss(self, t_now, gnss, dtheta, dt):
         """Give the engine every queued epoch up to ``t_now``; the reason if it diverged.
 
         ``dtheta`` (3,) rad and ``dt`` s: the increment of the sample at ``t_now`` (its rate
         moves the epochs from the antenna to the IMU, :mod:`.installation`).
         """
+        if self.motion_check is not None and self.motion_check.epoch(t_now, self.engine):
+            self._att_cov = None
         while True:
             fix = gnss.pop_due(t_now, self.t0)
             if fix is None:
@@ -97,4 +126,5 @@ class EpochUpdates:
                     eng.inflate_noise(self.consistency.r_factors)
                 if self.consistency.relax:
                     eng.relax()
+                self._watch_slow(t_now, fix)
             self._epoch_done(t_now)

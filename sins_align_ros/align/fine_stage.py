@@ -12,7 +12,10 @@ stationary filter (up to ``max_stages``) or turns ``fine`` into ``aligned``.
 
 The GNSS-aided engines' innovations are checked against their covariance
 (:class:`~.consistency.ConsistencyMonitor`); an inconsistent filter has its covariance
-inflated and is not ``aligned`` until the test passes again.
+inflated and is not ``aligned`` until the test passes again. Their heading is also held
+against the GNSS course on straight legs (:mod:`.slow_monitor`: a slow model error the
+innovations do not show), and their IMU samples against the sensor model while the vehicle
+moves (:mod:`.motion_check`: vibration and turns the coarse window did not show).
 
 ``aligned`` means good enough for the user (DESIGN.md: the attitude meets the user's
 thresholds and the consistency checks pass): the roll/pitch and heading 1-sigma must be
@@ -59,6 +62,7 @@ from .expectation import SigmaHistory
 from .fine_epochs import EpochUpdates
 from .gnss_gate import FilterDiverged
 from .imu_input import intervals
+from . import motion_check, slow_monitor
 from .output import Rows, one_row
 from .sideslip import SideslipCheck
 from .still_watch import StillWatch
@@ -134,6 +138,10 @@ class FineStage(EpochUpdates):
         self.still = (StillWatch(engine, cfg['fine_update_hz'], cfg['coarse_duration'],
                                  cfg['gyro_bias_instability_dph'] * DPH)
                       if engine.restages else None)
+        #: the heading against the GNSS course (:mod:`.slow_monitor`) and the sensor model
+        #: against the IMU in motion (:mod:`.motion_check`), aided engines only, or None
+        self.slow = slow_monitor.for_stage(engine, cfg)
+        self.motion_check = motion_check.for_stage(engine, cfg, noise)
 
     @property
     def moving(self):
@@ -199,6 +207,8 @@ class FineStage(EpochUpdates):
         if not self.consistency.consistent:
             why.append(f'innovations inconsistent (NIS/dof {self.consistency.ratio:.2f} > '
                        f'{self.consistency.bound:.2f}): {self.consistency.remedy}')
+        if self.slow is not None and self.slow.reason:
+            why.append(self.slow.reason)
         if not tilt:
             why.append(f'tilt 1-sigma above {math.degrees(self.max_tilt):g} deg')
         if not heading:
@@ -304,6 +314,8 @@ class FineStage(EpochUpdates):
         eng, c = self.engine, self.clock
         m = eng.mech
         n = len(t)
+        if self.motion_check is not None:
+            self.motion_check.push(t, dtheta, dv, intervals(t, c.t_last))
         Cs = np.empty((n, 3, 3))
         nav = np.empty((n, 6)) if self.navigating else None
         parts, start = [], 0
@@ -377,6 +389,8 @@ class FineStage(EpochUpdates):
                     return one_row(t, C, eng.attitude_cov(), FINE, None), reason
         else:
             n_pred = eng.n_predict_only
+            if self.motion_check is not None:
+                self.motion_check.push(t, dtheta, dv, dt)
             try:
                 C = eng.step_imu(dtheta, dv, dt)
                 reason = None

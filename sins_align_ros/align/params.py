@@ -179,6 +179,17 @@ ALIGNMENT_PARAMS = (
           '1 m/s, heading known) is taken for an IMU turned about the vertical '
           'with imu_mounting_rpy_deg untold: the attitude is published as unknown and never '
           'aligned; 180 turns the check off (a vehicle that moves sideways), deg', 5.0, 180.0),
+    Param('slow_monitor_legs', 3, 'slow-error monitor of the GNSS-aided filters: this many '
+          'consecutive straight legs whose GNSS course lies more than slow_monitor_sigmas from '
+          'the published heading leave aligned and inflate the heading, tilt and bias '
+          'covariance; as many agreeing legs end it (docs/alignment_node.md); 0 turns it off',
+          0, 100),
+    Param('slow_monitor_sigmas', 3.0, 'slow-error monitor: a straight leg disagrees when its '
+          'course minus the published heading exceeds this many combined sigmas (heading, '
+          'course noise, sideslip)', 1.0, 20.0),
+    Param('slow_monitor_sideslip_deg', 0.5, 'slow-error monitor: the sideslip (crab) 1-sigma '
+          'a straight leg may show, deg: a car 0.5, a skid-steer robot a few, a boat in a '
+          'current 20-30', 0.0, 90.0),
     Param('gnss_pos_sigma_m', 1.0, 'GNSS horizontal position noise, 1 sigma, m (moving-base '
           'filters; used when a fix reports no covariance or reported covariance is off)',
           0.001, 1000.0),

@@ -34,6 +34,7 @@ def pipeline_status(p):
         s.update(fine.engine.status())
         if p.aided:
             s.update(fine.consistency.status())
+            s.update(fine.monitor_status())
             s.update({f'gnss_{k}': v for k, v in p.gnss.counts.items()})
     s.update({f'coarse_{k}': v for k, v in p.coarse_info.items()})
     if p.check is not None:
@@ -95,6 +96,8 @@ class ConditionReport:
                 out.append((1, 'the IMU has shown rest for a whole coarse window: '
                                'zero-velocity alignment resumed'))
             self._moving = moving
+        if p.fine is not None:
+            out.extend((1, text) for text in p.fine.monitor_findings())
         n = self._since('queue_full', p.gnss.counts['queue_full'])
         if n > 0:
             out.append((1, f'{n} GNSS epoch(s) dropped: more than {QUEUE} '

@@ -1,0 +1,209 @@
+"""The self-check in motion: the sensor model against the IMU data of the fine stage.
+
+The sensor self-check (:mod:`.self_check`) judges the grade and the noise once, on the
+coarse window. A vehicle that stood still there (a robot waiting for its mission, a car at
+a traffic light) shows neither its vibration nor its turns in it: a skid-steer chassis on
+asphalt adds degrees per second of sample-to-sample rate that a MEMS gyro's configured
+0.4 deg/sqrt(h) does not cover, and a first turn of 90 deg puts 2 % of it (1.8 deg) into
+the heading of a triad whose scale factors nobody calibrated. So while a GNSS-aided fine
+stage runs, its IMU samples are taken in windows of :data:`WINDOW_S` seconds and each is
+checked as the coarse self-check checks a moving base, with its estimators:
+
+* **White noise**: the third differences of the rates and of the specific force
+  (:func:`~.self_check.difference_density`: motion is smooth at the sample level, so what
+  is left is the sensor's noise plus vibration and quantization, an upper bound). Where
+  the gyro's is more than :data:`~.self_check.NOISE_RATIO` times the model's (as the
+  coarse self-check and earlier windows left it), the engine's misalignment process noise
+  is raised by the square of the ratio; the accelerometer's, counted at most to the white
+  noise of the class the gyro noise shows (:data:`~.self_check.ACCEL_VRW_BY_GYRO_NOISE`,
+  as the coarse check does: vibration above it averages out over a GNSS interval), raises
+  the velocity process noise the same way.
+* **Turns and the grade**: a window whose rate reaches :data:`TURN_RATE` shows turns;
+  the scale factors and axis misalignment of the class the gyro noise shows
+  (:data:`~.self_check.SCALE_BY_GYRO_NOISE`: 2 % and 0.5 % for MEMS triads, none for the
+  tactical and navigation classes) then replace the model's where larger
+  (``engine.set_rotation_error``, :mod:`.rotation_error`). The class is that of the
+  smaller of the window's noise and the model's at the start of the stage (as the coarse
+  self-check left it): vibration makes a tactical gyro on a vibrating chassis look like a
+  MEMS one in motion, and its scale factors are still a tactical gyro's. (The coarse
+  self-check on a moving base classes by the noise it sees, vibration included.)
+
+Never narrowed; each widening is a finding (a WARN on ``/diagnostics`` once, and the
+figures ``motion_check_*``). The windows are evaluated at the GNSS epoch that follows
+their last sample, so the block and the sample-by-sample paths of the fine stage widen
+at the same epoch. Not in the seeds; it extends the coarse self-check (same rules) to the
+fine stage.
+"""
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from ..units import DEG, DPSH, UG
+from .self_check import (ACCEL_VRW_BY_GYRO_NOISE, NOISE_RATIO, SCALE_BY_GYRO_NOISE,
+                         difference_density)
+
+#: seconds of IMU samples judged at a time
+WINDOW_S = 20.0
+#: a rate (norm, rad/s) at least this in a window shows turns
+TURN_RATE = 10.0 * DEG
+
+
+def class_value(table, gyro_noise_dpsh):
+    """Value of a self-check class ``table`` ((upper edge, value), ...) for a gyro noise."""
+    return next(v for edge, v in table if gyro_noise_dpsh <= edge)
+
+
+def widen_process_noise(engine, rows, factor, floor):
+    """Multiply the engine's process noise of state ``rows`` (a slice) by ``factor`` (> 1).
+
+    The continuous densities ``Qc`` and the model's own ``_Qc0`` (so that relaxing an
+    inflation returns to the widened model, not below it), at least ``floor`` each; an
+    adaptive filter's own Q estimate (ASCKF's Sage-Husa) has those rows and columns scaled
+    as :meth:`~.aided.ConsistencyRemedies.inflate` scales all of it.
+    """
+    k = np.arange(len(engine.Qc))[rows]
+    for name in ('Qc', '_Qc0'):
+        q = np.array(getattr(engine, name), dtype=float)
+        q[k] = np.maximum(q[k] * factor, floor)
+        setattr(engine, name, q)
+    if engine.adaptive:
+        s = np.ones(len(engine.Qc))
+        s[k] = math.sqrt(factor)
+        engine.kf.Q = engine.kf.Q * np.outer(s, s)
+
+
+class MotionCheck:
+    """The sensor model against the fine stage's IMU windows (module docstring).
+
+    ``noise``: the model the engine was built with (:class:`NoiseSpec`, SI, as the coarse
+    self-check widened it); ``scale``, ``misalignment``: the gyro scale-factor and
+    misalignment 1-sigma the engine models (-).
+    """
+
+    def __init__(self, noise, scale=0.0, misalignment=0.0, window_s=WINDOW_S):
+        self.noise = noise
+        #: the gyro noise the grade is judged by at most (the model's at the start), rad/sqrt(s)
+        self.class_arw = noise.gyro_arw
+        self.scale = float(scale)
+        self.misalignment = float(misalignment)
+        self.window_s = float(window_s)
+        self._t, self._w, self._f, self._dt = [], [], [], []
+        #: start of the first interval kept (s), None with nothing kept
+        self._t0 = None
+        #: parameter name -> value (datasheet units) widened in motion
+        self.widened = {}
+        #: findings not yet reported (:meth:`take_findings`), and all of them
+        self.new_findings = []
+        self.findings = []
+        self.figures = {}
+        self.n_windows = 0
+
+    def push(self, t, dtheta, dv, dt):
+        """Keep samples: stamps ``t`` (N,), increments ``dtheta``, ``dv`` (N, 3), intervals ``dt``.
+
+        They are judged at the GNSS epochs that follow them (:meth:`epoch`).
+        """
+        dt = np.asarray(dt, dtype=float).reshape(-1)
+        if not len(dt):
+            return
+        d = np.maximum(dt, 1e-6)[:, None]
+        t = np.asarray(t, dtype=float).reshape(-1)
+        if self._t0 is None:
+            self._t0 = float(t[0] - dt[0])
+        self._t.append(t)
+        self._w.append(np.asarray(dtheta, dtype=float).reshape(-1, 3) / d)
+        self._f.append(np.asarray(dv, dtype=float).reshape(-1, 3) / d)
+        self._dt.append(dt)
+
+    def epoch(self, t_now, engine):
+        """At a GNSS epoch at ``t_now``: judge the samples up to it if they fill a window.
+
+        Widens ``engine`` where the data show more than the model; returns True if it did.
+        """
+        # (stamps rise: the samples up to t_now span at most t_now - t0, so the arrays are
+        # joined once a window, however far ahead of the epochs a block was pushed)
+        if self._t0 is None or t_now - self._t0 < self.window_s:
+            return False
+        t = np.concatenate(self._t)
+        n = int(np.searchsorted(t, t_now, side='right'))
+        dt = np.concatenate(self._dt)
+        if float(np.sum(dt[:n])) < self.window_s:
+            return False
+        w, f = np.concatenate(self._w), np.concatenate(self._f)
+        self._t, self._w, self._f, self._dt = [t[n:]], [w[n:]], [f[n:]], [dt[n:]]
+        self._t0 = float(t[n - 1]) if n < len(t) else None
+        return self._judge(w[:n], f[:n], float(np.mean(dt[:n])), engine)
+
+    def _judge(self, w, f, dt, engine):
+        """Widen ``engine`` from one window's rates ``w`` and specific forces ``f`` (N, 3)."""
+        arw = difference_density(w, dt)
+        if not math.isfinite(arw):
+            return False
+        self.n_windows += 1
+        vrw = min(difference_density(f, dt),
+                  class_value(ACCEL_VRW_BY_GYRO_NOISE, arw / DPSH) * UG)
+        rate = float(np.max(np.linalg.norm(w, axis=1)))
+        self.figures.update(motion_check_gyro_noise_dpsh=arw / DPSH,
+                            motion_check_accel_noise_ug_rthz=vrw / UG,
+                            motion_check_max_rate_dps=rate / DEG,
+                            motion_check_windows=self.n_windows)
+        did = False
+        if arw > NOISE_RATIO * self.noise.gyro_arw:
+            widen_process_noise(engine, engine.i_phi, (arw / self.noise.gyro_arw) ** 2, arw ** 2)
+            self._found('gyro_arw_dpsh', arw / DPSH,
+                        f'gyro white noise {arw / DPSH:.3g} deg/sqrt(h) in motion, '
+                        f'{self.noise.gyro_arw / DPSH:.3g} in the model (vibration?): '
+                        'gyro_arw_dpsh widened in the running filter')
+            self.noise = replace(self.noise, gyro_arw=arw)
+            did = True
+        if vrw > NOISE_RATIO * self.noise.accel_vrw:
+            widen_process_noise(engine, engine.i_v, (vrw / self.noise.accel_vrw) ** 2, vrw ** 2)
+            self._found('accel_vrw_ug_rthz', vrw / UG,
+                        f'accelerometer white noise {vrw / UG:.3g} ug/sqrt(Hz) in motion '
+                        f'(counted up to its class\'s), {self.noise.accel_vrw / UG:.3g} in the '
+                        'model: accel_vrw_ug_rthz widened in the running filter')
+            self.noise = replace(self.noise, accel_vrw=vrw)
+            did = True
+        if rate >= TURN_RATE:
+            grade = min(arw, self.class_arw) / DPSH
+            scale, mis = (v * 1e-6 for v in class_value(SCALE_BY_GYRO_NOISE, grade))
+            if scale > self.scale or mis > self.misalignment:
+                self.scale, self.misalignment = max(scale, self.scale), max(mis,
+                                                                            self.misalignment)
+                engine.set_rotation_error(self.scale, self.misalignment)
+                self._found('gyro_scale_factor_ppm', self.scale * 1e6,
+                            f'turns at up to {rate / DEG:.0f} deg/s with a gyro of the MEMS '
+                            f'class ({grade:.3g} deg/sqrt(h)): gyro_scale_factor_ppm '
+                            f'{self.scale * 1e6:.3g} and gyro_misalignment_ppm '
+                            f'{self.misalignment * 1e6:.3g} taken in the running filter (a '
+                            f'90 deg turn: {self.scale * 90:.2g} deg of heading)')
+                self.widened['gyro_misalignment_ppm'] = self.misalignment * 1e6
+                did = True
+        return did
+
+    def _found(self, name, value, text):
+        self.widened[name] = value
+        self.findings.append(text)
+        self.new_findings.append(text)
+
+    def take_findings(self):
+        """Return the findings not reported yet (and forget them)."""
+        out, self.new_findings = self.new_findings, []
+        return out
+
+    def status(self):
+        """Figures for diagnostics."""
+        s = dict(self.figures)
+        if self.widened:
+            s['motion_check_widened'] = ' '.join(f'{k}={v:.4g}'
+                                                 for k, v in self.widened.items())
+        return s
+
+
+def for_stage(engine, cfg, noise):
+    """Return the motion check of a fine stage running ``engine`` (None: still base, no check)."""
+    if engine.restages or not cfg['sensor_self_check'] or noise is None:
+        return None
+    return MotionCheck(noise, cfg['gyro_scale_factor_ppm'] * 1e-6,
+                       cfg['gyro_misalignment_ppm'] * 1e-6)
