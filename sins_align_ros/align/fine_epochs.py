@@ -97,4 +97,9 @@ class EpochUpdates:
                     eng.inflate_noise(self.consistency.r_factors)
                 if self.consistency.relax:
                     eng.relax()
+                excess = self.consistency.add_long(fix.t, upd.y, upd.Pzz.diagonal(),
+                                                   eng.last_rows, bool(eng.kf.rejected))
+                if excess:
+                    self.consistency.note_widening(
+                        excess, *eng.widen_gnss_noise(excess, self.consistency.long.block_s))
             self._epoch_done(t_now)
