@@ -247,3 +247,27 @@ def test_a_position_only_robots_tilt_claim_is_honest_with_the_correlated_error_t
     assert r1['end_inside']
     # the price: a wider tilt sigma (the positions' short-lag information given away)
     assert np.all(r1['end_sigma'][:2] > r0['end_sigma'][:2])
+
+
+def test_the_fine_stage_switches_the_model_on_and_says_so():
+    """car_consumer (5 Hz, 1 m white + 1.5 m / 60 s, Doppler), node defaults, 200 s.
+
+    Nothing told about the receiver's correlated error: the long-horizon test finds it
+    in the KF's position innovations once it has its blocks (80 s of the fine stage), the
+    Gauss-Markov sigma goes from 0 up, the diagnostics carry it and a WARN says so.
+    """
+    sc = scenario('car_consumer', duration=200.0)
+    params = {k: v for k, v in alignment_params(sc, 'kf').items()
+              if k in ('fine_filter', 'initial_latitude_deg', 'initial_longitude_deg',
+                       'initial_height_m')}
+    p = run_pipeline(params, simulate(sc, 1000)).pipeline
+    s = p.status()
+    assert s['gnss_position_markov_sigma_m'] > 0.0 and s['gnss_position_markov_widenings'] >= 1
+    assert s['consistency_long_widenings'] == s['gnss_position_markov_widenings']
+    assert s['consistency_long_bound'] == pytest.approx(
+        chi2_quantile(LONG_PROBABILITY, LONG_BLOCKS) / LONG_BLOCKS)
+    warns = [(level, text) for level, text in p.conditions() if 'correlated over tens' in text]
+    assert len(warns) == s['consistency_long_widenings']
+    assert all(level == 1 for level, _ in warns)                 # WARN
+    assert '0.00 -> ' in warns[0][1] and 'x the variance white noise predicts' in warns[0][1]
+    assert not [t for _, t in p.conditions() if 'correlated over tens' in t]   # said once
