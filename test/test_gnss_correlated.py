@@ -90,7 +90,8 @@ def test_the_model_only_widens_and_clamps_the_interval():
 
 def _engine(method):
     eng = MovingBaseAlignment(np.eye(3), np.zeros(3), 0.5, 2.0, 0.0, np.eye(13) * 1e-2,
-                              np.r_[np.ones(10), np.zeros(3)] * 1e-6, np.diag([1.0, 1.0, 0.01, 0.01]),
+                              np.r_[np.ones(10), np.zeros(3)] * 1e-6,
+                              np.diag([1.0, 1.0, 0.01, 0.01]),
                               use_velocity=True, square_root=False)
     eng.set_gnss_markov(1.5, 60.0, method)
     return eng

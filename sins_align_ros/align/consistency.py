@@ -256,7 +256,8 @@ class ConsistencyMonitor:
 
     def status(self):
         """Figures for diagnostics."""
-        return {**self.long.status(), 'consistency_ok': self.consistent, 'consistency_nis_ratio': self.ratio,
+        return {**self.long.status(),
+                'consistency_ok': self.consistent, 'consistency_nis_ratio': self.ratio,
                 'consistency_bound': self.bound, 'consistency_inflations': self.n_inflations,
                 'consistency_noise_inflations': self.n_r_inflations,
                 'consistency_outliers_left_out': self.n_outliers,

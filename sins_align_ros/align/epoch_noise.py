@@ -90,12 +90,12 @@ class EpochNoise:
         self.kf.R = R
 
     def widen_gnss_noise(self, excess, block_s):
-        """The long-horizon test's remedy: ``excess`` row -> (variance m^2 or (m/s)^2, factor).
+        """Apply the long-horizon test's ``excess``: row -> (variance m^2 or (m/s)^2, factor).
 
         Position rows widen the Gauss-Markov model by the largest excess variance of
-        ``block_s``-second means (:meth:`~.gnss_markov.GnssMarkov.widen`); velocity rows have their noise
-        inflated by the factor (filters that set R). Returns ``(old, new)`` Gauss-Markov
-        sigma (m) and the velocity rows' factors applied (dict).
+        ``block_s``-second means (:meth:`~.gnss_markov.GnssMarkov.widen`); velocity rows
+        have their noise inflated by the factor (filters that set R). Returns ``(old,
+        new)`` Gauss-Markov sigma (m) and the velocity rows' factors applied (dict).
         """
         pos = set(position_rows(self.MEAS_ENU).tolist())
         gm = self._markov()

@@ -123,7 +123,7 @@ class GnssMarkov:
         return dt
 
     def process_var(self, dt):
-        """Variance (m^2) to add to each measured position state before the update (``process``)."""
+        """Variance (m^2) to add to each measured position state before an update (process)."""
         return random_walk_var(self.sigma, self.tau, dt) if self.active else 0.0
 
     def measurement_var(self, dt):
