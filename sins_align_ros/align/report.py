@@ -32,10 +32,10 @@ def pipeline_status(p):
         s.update(tilt_ready=tilt, heading_ready=heading, heading_observable=fine.heading_known,
                  not_aligned_reason=fine.why_not_aligned())
         s.update(fine.engine.status())
+        if p.aided and getattr(fine.engine, 'gnss_markov', None) is not None:
+            s.update(fine.engine.gnss_markov.status())      # the GNSS Gauss-Markov model
         if p.aided:
             s.update(fine.consistency.status())
-            if getattr(fine.engine, 'gnss_markov', None) is not None:
-                s.update(fine.engine.gnss_markov.status())
             s.update({f'gnss_{k}': v for k, v in p.gnss.counts.items()})
     s.update({f'coarse_{k}': v for k, v in p.coarse_info.items()})
     if p.check is not None:
