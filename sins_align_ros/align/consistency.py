@@ -54,6 +54,21 @@ attitude, and repeated, destroys it.
 
 Not in the seeds (their filters adapt R or Q, or fade, each in its own way); this is
 the one check every GNSS-aided filter shares, so that a published sigma stays a claim.
+
+Errors correlated over tens of seconds (a consumer receiver's Gauss-Markov position
+error, :mod:`.gnss_markov`) pass the window: ten epochs at 5 Hz see two seconds of an
+error that changes over a minute, and the filter half follows it, so the NIS stays near
+its degrees of freedom while the filter over-trusts every difference of positions.
+:class:`LongHorizonTest` looks at the innovations averaged over :data:`LONG_BLOCK_S`-second
+blocks instead: for white innovations with the predicted covariance, ``N mean(u)^2`` of a
+block of N normalised innovations is chi-square with one degree of freedom whatever N,
+while a correlated error adds to it in proportion to N (the variance-ratio idea of
+Mehra's whiteness test, taken to long lags). When a row's sum over the last
+:data:`LONG_BLOCKS` blocks exceeds the :data:`LONG_PROBABILITY` quantile, its excess
+variance (the block means' squares less what white noise predicts, in m^2 or (m/s)^2)
+widens the GNSS model: the Gauss-Markov position error for the position rows, the noise
+for the velocity rows (:meth:`~.epoch_noise.EpochNoise.widen_gnss_noise`). It only widens;
+its histories restart after a widening, so the next verdict is on the widened filter.
 """
 import math
 from collections import deque
@@ -76,6 +91,14 @@ HISTORY = 30
 MODEL_LAG1 = 0.3
 #: refused epochs up to this share of the last HISTORY are outliers, left out of the test
 OUTLIER_SHARE = 0.1
+#: seconds of innovations averaged per block of the long-horizon test
+LONG_BLOCK_S = 20.0
+#: blocks per verdict of the long-horizon test (its horizon: LONG_BLOCKS x LONG_BLOCK_S)
+LONG_BLOCKS = 4
+#: probability of its chi-square test (a verdict per row and block: few false widenings)
+LONG_PROBABILITY = 0.99999
+#: fewest epochs in a block for its mean to count
+LONG_MIN_EPOCHS = 10
 
 
 class ConsistencyMonitor:
@@ -109,6 +132,10 @@ class ConsistencyMonitor:
         self.n_outliers = 0
         #: failed tests with white innovations left to a filter that estimates R itself
         self.n_white = 0
+        #: errors correlated over tens of seconds (:class:`LongHorizonTest`)
+        self.long = LongHorizonTest()
+        #: what the long-horizon test's widenings did, for the warnings (popped)
+        self.notes = []
 
     def add(self, nis, dof, u=None, rows=None, rejected=False, noise_remedy=True):
         """Record one epoch's NIS with ``dof`` measurements; return an inflation factor or None.
@@ -195,10 +222,117 @@ class ConsistencyMonitor:
         stats = list(self._row_stats())
         return bool(stats) and all(lag1 < MODEL_LAG1 for _, _, lag1 in stats)
 
+    def add_long(self, t, y, s, rows, rejected=False):
+        """Give the long-horizon test an epoch (refused ones are left out); its findings.
+
+        Returns :attr:`LongHorizonTest.excess` (row -> (excess variance, ratio)), empty
+        unless a row failed at this epoch.
+        """
+        if rejected or y is None:
+            self.long.excess = {}
+            return {}
+        self.long.add(t, y, s, rows)
+        return self.long.excess
+
+    def note_widening(self, excess, old, new, vel):
+        """Say what a long-horizon widening did (``excess`` as :meth:`add_long` gave it)."""
+        ratio = max(r for _, r in excess.values())
+        what = []
+        if new > old:
+            what.append(f'GNSS Gauss-Markov position sigma widened {old:.2f} -> {new:.2f} m')
+        if vel:
+            what.append('GNSS velocity noise inflated x' + '/'.join(
+                f'{f:.3g}' for f in vel.values()))
+        if what:
+            self.notes.append(
+                f'GNSS errors correlated over tens of seconds: innovations averaged over '
+                f'{self.long.block_s:.0f} s are {ratio:.1f}x the variance white noise '
+                f'predicts (bound {self.long.bound:.1f}): ' + ', '.join(what))
+
+    def pop_notes(self):
+        """Return and clear the widening notes."""
+        out, self.notes = self.notes, []
+        return out
+
     def status(self):
         """Figures for diagnostics."""
-        return {'consistency_ok': self.consistent, 'consistency_nis_ratio': self.ratio,
+        return {**self.long.status(),
+                'consistency_ok': self.consistent, 'consistency_nis_ratio': self.ratio,
                 'consistency_bound': self.bound, 'consistency_inflations': self.n_inflations,
                 'consistency_noise_inflations': self.n_r_inflations,
                 'consistency_outliers_left_out': self.n_outliers,
                 'consistency_white_failures': self.n_white}
+
+
+class LongHorizonTest:
+    """Innovations averaged over tens of seconds against white noise; module docstring.
+
+    :meth:`add` takes each accepted epoch's stamp, innovations ``y`` and their predicted
+    variances ``s`` (diag S) with their measurement rows; :attr:`excess` is set, at the
+    end of a block whose row fails, to ``row -> (excess variance, ratio)``: the mean of
+    the block means' squares less the mean of ``s / N`` (m^2, (m/s)^2), and the test
+    statistic over its degrees of freedom. The caller widens the model with it.
+    """
+
+    def __init__(self, block_s=LONG_BLOCK_S, blocks=LONG_BLOCKS, probability=LONG_PROBABILITY):
+        self.block_s = float(block_s)
+        self.blocks = int(blocks)
+        self.bound = chi2_quantile(probability, self.blocks) / self.blocks
+        #: row -> [t0 of the open block, n, sum u, sum y, sum s]
+        self._open = {}
+        #: row -> deque of closed blocks (n, mean u, mean y, mean s)
+        self._closed = {}
+        #: the last verdict's largest ratio (statistic / dof) over the rows, NaN before one
+        self.ratio = float('nan')
+        #: row -> (excess variance, ratio) of the rows failing at the last call, else empty
+        self.excess = {}
+        self.n_failures = 0
+        self._ratios = []
+
+    def add(self, t, y, s, rows):
+        """Record one epoch (innovations ``y`` (m,), variances ``s`` (m,), ``rows`` (m,))."""
+        self.excess = {}
+        self._ratios = []
+        y, s = np.asarray(y, dtype=float), np.asarray(s, dtype=float)
+        for r, yi, si in zip(np.asarray(rows).tolist(), y.tolist(), s.tolist()):
+            if not (si > 0.0 and math.isfinite(yi) and math.isfinite(si)):
+                continue
+            b = self._open.get(r)
+            if b is None or t - b[0] >= self.block_s:
+                if b is not None:
+                    self._close(r, b)
+                b = self._open[r] = [t, 0, 0.0, 0.0, 0.0]
+            b[1] += 1
+            b[2] += yi / math.sqrt(si)
+            b[3] += yi
+            b[4] += si
+        if self._ratios:
+            self.ratio = max(self._ratios)
+        if self.excess:
+            self.n_failures += 1
+            self.restart()
+
+    def _close(self, r, b):
+        """Close row ``r``'s block ``b``; judge the row when it has its blocks."""
+        n = b[1]
+        if n < LONG_MIN_EPOCHS:
+            return
+        q = self._closed.setdefault(r, deque(maxlen=self.blocks))
+        q.append((n, b[2] / n, b[3] / n, b[4] / n))
+        if len(q) < self.blocks:
+            return
+        ratio = sum(n * mu * mu for n, mu, _, _ in q) / self.blocks
+        self._ratios.append(ratio)
+        if ratio > self.bound:
+            excess = sum(my * my - ms / n for n, _, my, ms in q) / self.blocks
+            self.excess[r] = (max(excess, 0.0), ratio)
+
+    def restart(self):
+        """Forget the blocks (after a widening: the next verdict is the widened filter's)."""
+        self._open.clear()
+        self._closed.clear()
+
+    def status(self):
+        """Figures for diagnostics."""
+        return {'consistency_long_ratio': self.ratio, 'consistency_long_bound': self.bound,
+                'consistency_long_widenings': self.n_failures}

@@ -7,19 +7,68 @@ used, the consistency monitor's factors (``R_scale``) and a lever arm's variance
 antenna to the IMU, :mod:`.installation`). A Sage-Husa filter, whose R is its own
 estimate, is lent the arm's part for the epoch instead; the variational-Bayes filters
 learn it in their posterior.
+
+The receiver's time-correlated position error (:mod:`.gnss_markov`) is taken here too,
+for every aided filter: by default as a white-equivalent share of each position row's R
+where the engine sets R, else (and with the ``process`` method) as a random walk of the
+measured position states (their variance raised before the update,
+:meth:`EpochNoise._take_markov`).
 """
 import numpy as np
+
+from .gnss_markov import GnssMarkov, position_rows
 
 
 class EpochNoise:
     """R of each GNSS epoch (a mixin; module docstring).
 
     Uses the engine's ``kf``, ``R_nominal``, ``R_scale``, ``sets_R``, ``use_reported_cov``,
-    ``use_velocity`` and ``MEAS_ENU``.
+    ``use_velocity``, ``rows`` and ``MEAS_ENU``.
     """
 
+    #: the receiver's Gauss-Markov position error the engine assumes (:mod:`.gnss_markov`)
+    gnss_markov = None
+
+    def set_gnss_markov(self, sigma, tau, method='measurement'):
+        """Assume a Gauss-Markov position error of ``sigma`` m per axis, ``tau`` s.
+
+        Sigma 0 assumes none until the consistency monitor's long-horizon test finds one
+        (:meth:`widen_gnss_noise`); ``tau`` is then the correlation time it assumes.
+        """
+        self.gnss_markov = GnssMarkov(sigma, tau, method)
+
+    def _markov(self):
+        if self.gnss_markov is None:
+            self.gnss_markov = GnssMarkov()
+        return self.gnss_markov
+
+    def _markov_in_R(self):
+        """Tell whether the Gauss-Markov error goes into R (else into P, :meth:`_take_markov`)."""
+        return self.gnss_markov.method == 'measurement' and self.sets_R
+
+    def _take_markov(self, fix):
+        """Before ``fix``'s update: the interval since the last fix; the random walk.
+
+        Unless the error goes into R (:meth:`_markov_in_R`), raises the measured position
+        states' variance by ``q dt`` (:meth:`~.gnss_markov.GnssMarkov.process_var`); a
+        filter's P setter keeps its own form (a square-root factor is refactored).
+        """
+        gm = self._markov()
+        dt = gm.epoch(fix.t)
+        var = 0.0 if self._markov_in_R() else gm.process_var(dt)
+        if var <= 0.0:
+            return
+        k = np.asarray(self.rows)[position_rows(self.MEAS_ENU)]
+        P = self.kf.P.copy()
+        P[k, k] += var
+        self.kf.P = P
+
     def _set_epoch_noise(self, fix):
-        """Set ``kf.R`` for ``fix`` where the engine sets it (never for an adaptive filter)."""
+        """Set ``kf.R`` for ``fix`` where the engine sets it (never for an adaptive filter).
+
+        Takes the Gauss-Markov position error first (:meth:`_take_markov`), for every filter.
+        """
+        self._take_markov(fix)
         if not (self.sets_R or self.use_reported_cov):
             return
         R = self.R_nominal.copy()
@@ -31,9 +80,33 @@ class EpochNoise:
         if self.sets_R:
             s = np.sqrt(self.R_scale)
             R = R * np.outer(s, s)
+        gm = self.gnss_markov
+        extra = gm.measurement_var(gm.dt) if self._markov_in_R() else 0.0
+        if extra > 0.0:
+            k = position_rows(self.MEAS_ENU)
+            R[k, k] += extra
         if fix.arm_var is not None:
             R[np.diag_indices(len(R))] += fix.arm_var[self.MEAS_ENU]
         self.kf.R = R
+
+    def widen_gnss_noise(self, excess, block_s):
+        """Apply the long-horizon test's ``excess``: row -> (variance m^2 or (m/s)^2, factor).
+
+        Position rows widen the Gauss-Markov model by the largest excess variance of
+        ``block_s``-second means (:meth:`~.gnss_markov.GnssMarkov.widen`); velocity rows
+        have their noise inflated by the factor (filters that set R). Returns ``(old,
+        new)`` Gauss-Markov sigma (m) and the velocity rows' factors applied (dict).
+        """
+        pos = set(position_rows(self.MEAS_ENU).tolist())
+        gm = self._markov()
+        var = max([v for r, (v, _) in excess.items() if r in pos], default=0.0)
+        old, new = gm.widen(var, block_s)
+        vel = {r: f for r, (_, f) in excess.items() if r not in pos and f > 1.0}
+        if vel and self.sets_R:
+            self.inflate_noise(vel)
+        else:
+            vel = {}
+        return old, new, vel
 
     def _lend_arm_noise(self, fix):
         """Lend a lever arm's variance to an adaptive filter's R for one epoch (or None).

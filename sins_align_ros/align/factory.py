@@ -122,6 +122,7 @@ def make_engine(cfg, noise, start, has_velocity, heading_known=True):
     eng.heading_gate = _heading_gate(cfg)
     eng.set_rotation_error(cfg['gyro_scale_factor_ppm'] * 1e-6,
                            cfg['gyro_misalignment_ppm'] * 1e-6)
+    eng.set_gnss_markov(cfg['gnss_position_markov_sigma_m'], cfg['gnss_position_markov_tau_s'])
     if not heading_known:
         eng.hold_level_accel_bias()
     # a model without accelerometer bias leaves a tilt of bias / g, added at the output

@@ -37,6 +37,20 @@ class EpochUpdates:
         """Index of the sample of ``t`` (from ``k``) an external heading is due at, or None."""
         return None if self.headings is None else self.headings.next_due_index(t, k)
 
+    def _check_long(self, fix, upd):
+        """Give the long-horizon test (:class:`~.consistency.LongHorizonTest`) an epoch.
+
+        ``upd`` the engine's update record of ``fix`` (None: nothing); where a row fails,
+        the engine's GNSS model is widened and the monitor notes it for a WARN.
+        """
+        if upd is None:
+            return
+        eng, mon = self.engine, self.consistency
+        excess = mon.add_long(fix.t, upd.y, upd.Pzz.diagonal(), eng.last_rows,
+                              bool(eng.kf.rejected))
+        if excess:
+            mon.note_widening(excess, *eng.widen_gnss_noise(excess, mon.long.block_s))
+
     def _apply_epochs(self, t_now, gnss, dtheta, dt):
         """Apply the GNSS epochs, then the external headings, due at ``t_now``; the reason."""
         reason = self._apply_gnss(t_now, gnss, dtheta, dt)
@@ -109,6 +123,7 @@ class EpochUpdates:
                 return str(exc)
             gnss.used(fix)
             self._check_sideslip(fix)
+            self._check_long(fix, upd)
             if upd is not None:
                 eng = self.engine
                 # white excess innovations (a noisier receiver) are answered by the

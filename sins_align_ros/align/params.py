@@ -195,6 +195,14 @@ ALIGNMENT_PARAMS = (
           0.001, 1000.0),
     Param('gnss_vel_sigma_mps', 0.1, 'GNSS velocity noise, 1 sigma, m/s (gnss/vel)',
           0.001, 100.0),
+    Param('gnss_position_markov_sigma_m', 0.0, 'GNSS position error correlated in time: '
+          'first-order Gauss-Markov sigma per ENU axis beside the white noise (a consumer '
+          'receiver: about 1.5), m; the moving-base filters add its white equivalent over '
+          'the fix interval to each fix\'s position noise (docs/alignment_node.md); 0: '
+          'none assumed, until the innovations show one over tens of seconds (then '
+          'widened and said)', 0.0, 100.0),
+    Param('gnss_position_markov_tau_s', 60.0, 'correlation time of that Gauss-Markov error '
+          '(also when the innovations switch it on), s', 1.0, 1e5),
     Param('use_gnss_velocity', True, 'measure gnss/vel in the moving-base filters as well '
           'as the position (when gnss/vel messages arrive)'),
     Param('use_reported_gnss_covariance', True, 'take the GNSS noise from each message\'s '

@@ -32,6 +32,8 @@ def pipeline_status(p):
         s.update(tilt_ready=tilt, heading_ready=heading, heading_observable=fine.heading_known,
                  not_aligned_reason=fine.why_not_aligned())
         s.update(fine.engine.status())
+        if p.aided and getattr(fine.engine, 'gnss_markov', None) is not None:
+            s.update(fine.engine.gnss_markov.status())      # the GNSS Gauss-Markov model
         if p.aided:
             s.update(fine.consistency.status())
             s.update(fine.monitor_status())
@@ -83,6 +85,8 @@ class ConditionReport:
             if t_ref is not None and p.t_last - t_ref > OUTAGE_WARN_S:
                 out.append((1, f'no GNSS epoch used for {p.t_last - t_ref:.1f} s: '
                                'moving-base filter running unaided (attitude sigma growing)'))
+        if p.fine is not None and p.aided:     # the long-horizon test's widenings
+            out.extend((1, text) for text in p.fine.consistency.pop_notes())
         doubt = p.fine.mounting_doubt if p.fine is not None else ''
         if doubt and doubt != self._mounting:
             self._mounting = doubt

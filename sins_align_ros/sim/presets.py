@@ -490,7 +490,8 @@ def alignment_params(sc, fine_filter, **overrides):
     Gauss-Markov part (``gyro_bias_instability_dph``, ``gyro_bias_tau_s``), the
     accelerometer's constant and Gauss-Markov bias combined into one 1-sigma bias
     (no filter models a varying accelerometer bias), the white noises, the GNSS noise
-    and the scenario's position as the initial one; the installation (lever arm,
+    (with its Gauss-Markov position error where the receiver has one) and the
+    scenario's position as the initial one; the installation (lever arm,
     mounting) when the scenario has one; the gyro scale factors and misalignment where
     the IMU has them (the accelerometer misalignment, a constant horizontal error under
     gravity, joins the accelerometer bias).
@@ -522,6 +523,9 @@ def alignment_params(sc, fine_filter, **overrides):
         out['gnss_pos_sigma_m'] = float(sc.gnss.pos_sigma_h)
         out['gnss_vel_sigma_mps'] = float(sc.gnss.vel_sigma)
         out['gnss_height_sigma_m'] = float(sc.gnss.pos_sigma_v)
+        if sc.gnss.pos_markov_sigma > 0.0:        # a receiver's time-correlated error
+            out['gnss_position_markov_sigma_m'] = float(sc.gnss.pos_markov_sigma)
+            out['gnss_position_markov_tau_s'] = float(sc.gnss.pos_markov_tau_s)
     out.update(sc.extra.get('alignment', {}))
     out.update(overrides)
     return out
