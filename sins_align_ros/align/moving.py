@@ -17,10 +17,10 @@ each interval the drift state is turned by ``C~_now C~_last^T``, the computed at
 rotation since it was last turned (:meth:`MovingBaseAlignment._interval_ended`; a
 feedback's correction turns it too, :meth:`MovingBaseAlignment._feedback`). Held
 constant, the drift learnt before a ship's 80 deg turn no longer held after it and the
-ASCKF's heading sigma came out too small: with turn-on gyro biases drawn per run 4 of 20
-runs were silent wrong on the navigation-grade ``ship_underway`` (heading 100 deg,
-latitude 36 deg), 1 of 20 with the turn (heading RMS 0.51' under a 0.66' sigma;
-bench/results/asckf_ship.md). ``drift_in_body=False`` is the seed's model.
+ASCKF's heading sigma came out too small: on the navigation-grade ``ship_underway``
+(heading 100 deg, latitude 36 deg) with turn-on biases drawn per run, heading 1.25' RMS
+under a 0.90' sigma and 4 of 20 runs silent wrong; turned, 0.51' under 0.66' and 1 of 20
+(its east tilt; bench/results/asckf_ship.md). ``drift_in_body=False`` is the seed's model.
 
 Model size (where we differ from seed 000): with ``accel_bias`` given (the pipeline
 gives the configured ``accel_bias_ug``, :func:`model_noise`) the model has 13 states,
