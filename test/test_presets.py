@@ -51,8 +51,6 @@ def test_config_files_exist():
 #: measured no better than the defaults, not fixed yet (bench/results/presets.md; reported
 #: to the lead, issue 44): the filter each runs does worse there than the defaults' kf
 KNOWN_NO_BETTER = {
-    'alignment_ship_asckf.yaml': 'asckf: heading RMS while published 1.08 deg against kf\'s '
-                                 '0.67 on ship_underway (issue 44 item 8)',
     'alignment_usv_vbch.yaml': 'vbch: final heading RMS 0.43 deg against kf\'s 0.33 on '
                                'seed004_medium, 9 of 10 runs aligned against 10',
 }

@@ -237,9 +237,23 @@ class ConsistencyRemedies:
         States the model holds constant (zero Qc) get the process noise that would add
         ``factor - 1`` times their variance over :data:`INFLATION_SPAN` seconds, since
         a zero cannot be scaled.
+
+        A square-root filter (``kf.S``, ``P = S S^T``: the ASCKF) has its factor scaled,
+        by ``factor^(1/4)`` and the angle rows by :func:`cap_angles`'s factors, which is
+        the same ``P`` without factorising it again: a near-singular ``P`` (rounded
+        indefinite) made the Cholesky of setting ``kf.P`` raise (a robot with RTK in the
+        integrity matrix), where scaling ``S`` keeps it a factor of a semi-definite ``P``.
         """
-        P = self.kf.P * math.sqrt(factor)
-        self.kf.P = cap_angles(P, np.arange(len(P))[self.i_phi])
+        if getattr(self.kf, 'S', None) is not None:      # square root: no Cholesky of P
+            S = self.kf.S * factor ** 0.25
+            d = np.einsum('ij,ij->i', S, S)              # diag(S S^T)
+            c = np.ones(len(d))
+            rows = np.arange(len(d))[self.i_phi]
+            c[rows] = np.sqrt(np.minimum(1.0, ANGLE_UNKNOWN_VAR / d[rows]))
+            self.kf.S = c[:, None] * S
+        else:
+            P = self.kf.P * math.sqrt(factor)
+            self.kf.P = cap_angles(P, np.arange(len(P))[self.i_phi])
         # states the model holds constant (zero process noise) get some: the model
         # error may be theirs (a bias that varies, a constant one larger than its prior)
         floor = (factor - 1.0) * np.diag(self.kf.P) / INFLATION_SPAN

@@ -9,6 +9,19 @@ misalignment, velocity and position estimates are fed back into the
 mechanization (closed loop). The gyro drift state stays in the filter; it is
 resolved in the computed frame, so a heading correction turns it too.
 
+Drift in the body (where we differ from seed 000): the seed's drift states
+``eps_E, eps_N, eps_U`` (eq. 4 and the state vector after eq. 5) are a random
+constant in the navigation frame. A gyro bias is fixed in the body: resolved in the
+computed frame it is ``C~_b_n eps_b`` and turns as the vehicle turns. So at the end of
+each interval the drift state is turned by ``C~_now C~_last^T``, the computed attitude's
+rotation since it was last turned (:meth:`MovingBaseAlignment._interval_ended`; a
+feedback's correction turns it too, :meth:`MovingBaseAlignment._feedback`). Held
+constant, the drift learnt before a ship's 80 deg turn no longer held after it and the
+ASCKF's heading sigma came out too small: on the navigation-grade ``ship_underway``
+(heading 100 deg, latitude 36 deg) with turn-on biases drawn per run, heading 1.25' RMS
+under a 0.90' sigma and 4 of 20 runs silent wrong; turned, 0.51' under 0.66' and 1 of 20
+(its east tilt; bench/results/asckf_ship.md). ``drift_in_body=False`` is the seed's model.
+
 Model size (where we differ from seed 000): with ``accel_bias`` given (the pipeline
 gives the configured ``accel_bias_ug``, :func:`model_noise`) the model has 13 states,
 seed 000's 10 plus the accelerometer bias in body axes (a random constant; a random
@@ -149,6 +162,9 @@ class MovingBaseAlignment(GnssAidedEngine):
         but white, and goes to R); R is learnt only
         from epochs where it dominates the innovation covariance (a 30 deg heading
         error met by an acceleration otherwise drove R to 5000 times the truth).
+    drift_in_body : bool
+        Turn the drift state with the computed attitude (a gyro bias fixed in the body;
+        module docstring); False: seed 000's drift, constant in the navigation frame.
     cap_at_p0 : bool
         The fading never makes a variance larger than its P0 (not in the seed):
         a weakly observable heading faded epoch after epoch otherwise grows
@@ -168,7 +184,7 @@ class MovingBaseAlignment(GnssAidedEngine):
                  alpha=ALPHA, rho=0.95, beta=3.0, b=0.97, gate=False, lambda_max=np.inf,
                  adapt_q=False, r_ceiling=1e4, fading_gate=None, whiteness=WHITENESS,
                  cap_at_p0=True, gate_probability=None, gate_max_rejects=10,
-                 accel_bias=None, accel_bias_q=0.0):
+                 accel_bias=None, accel_bias_q=0.0, drift_in_body=True):
         Qc = np.asarray(Qc, dtype=float)
         R = np.asarray(R, dtype=float)
         P0 = np.asarray(P0, dtype=float)
@@ -199,6 +215,10 @@ class MovingBaseAlignment(GnssAidedEngine):
                          use_velocity=use_velocity, adaptive=square_root and adaptive,
                          use_reported_cov=use_reported_cov,
                          attitude_sums=self.has_accel_bias)
+        self.drift_in_body = bool(drift_in_body)
+        #: computed attitude (3, 3) when the drift was last turned (:meth:`_interval_ended`,
+        #: :meth:`_feedback`)
+        self._C_drift = self.mech.C_b_n.copy()
 
     def _transition(self):
         """Batched ``f(x)`` over the interval since the last filter epoch."""
@@ -216,6 +236,29 @@ class MovingBaseAlignment(GnssAidedEngine):
         f_n = self._model_force(f_n, lat, h)
         sub = max(1, int(math.ceil(T / 1.0)))
         return batched(lambda X: la.propagate(X, f_n, v_n, lat, h, T, substeps=sub, C_b_n=C))
+
+    def _interval_ended(self, T):
+        """Turn the drift with the computed attitude since it was last turned.
+
+        The drift is a gyro bias fixed in the body: resolved in the computed frame it is
+        ``C~_b_n eps_b``, and turns by ``C~_now C~_last^T`` (``J`` on the drift rows of
+        ``x`` and ``P``) as the vehicle turns. A correction turns the computed frame too:
+        :meth:`_feedback` turns the drift by it and records the corrected attitude, so
+        nothing is turned twice; a heading taken directly (``ExternalHeading``) is turned
+        here at the next interval's end. Seed 000 holds the drift constant in the
+        navigation frame (eq. 4-5; ``drift_in_body`` False): on a ship that turns 80 deg
+        and back, the drift learnt before the turn no longer held after it, and the
+        heading was certain of a gyrocompass error it no longer had (module docstring,
+        bench/results/asckf_ship.md).
+        """
+        super()._interval_ended(T)
+        if not self.drift_in_body:
+            return
+        C = self.mech.C_b_n
+        J = np.eye(self.n)
+        J[I_EPS, I_EPS] = C @ self._C_drift.T
+        self.kf.transform(J)
+        self._C_drift = C.copy()
 
     def measurement(self, fix, t_now):
         """Innovation vector of a fix taken at ``fix.t`` <= ``t_now`` (the last IMU stamp).
@@ -246,6 +289,7 @@ class MovingBaseAlignment(GnssAidedEngine):
         x = kf.x
         C_n_np = la.C_n_nprime(x[I_PHI])
         m.C_b_n = reorthonormalize(C_n_np.T @ m.C_b_n)
+        self._C_drift = m.C_b_n.copy()      # the drift is turned by C_n_np^T below
         m.correct_velocity(np.array([x[0], x[1], 0.0]))
         R_M, R_N = earth.radii(m.lat)
         m.correct_position(np.array([x[3] / (R_M + m.h),
