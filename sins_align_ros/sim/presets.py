@@ -491,17 +491,14 @@ def alignment_params(sc, fine_filter, **overrides):
     accelerometer's constant and Gauss-Markov bias combined into one 1-sigma bias
     (no filter models a varying accelerometer bias), the white noises, the GNSS noise
     and the scenario's position as the initial one; the installation (lever arm,
-    mounting) when the scenario has one; the gyro scale factors and misalignment where
-    the IMU has them (the accelerometer misalignment, a constant horizontal error under
-    gravity, joins the accelerometer bias).
+    mounting) when the scenario has one; the gyro and accelerometer scale factors and
+    misalignment where the IMU has them (the filters put the accelerometer's part under
+    gravity into their bias prior themselves: :mod:`~sins_align_ros.align.force_error`).
     ``sc.extra['alignment']`` adds scenario-specific settings; keyword overrides win.
     """
     s = sc.imu
     gyro_bias = float(np.max(np.abs(s.gyro_bias_dph)))
-    # the accelerometer misalignment turns gravity into a constant horizontal error, a bias
-    # to the filters (1e-6 g per ppm)
-    accel_bias = float(np.hypot(np.hypot(np.max(np.abs(s.accel_bias_ug)), s.accel_markov_ug),
-                                np.max(np.abs(s.accel_misalign_ppm))))
+    accel_bias = float(np.hypot(np.max(np.abs(s.accel_bias_ug)), s.accel_markov_ug))
     out = {'fine_filter': fine_filter, 'initial_latitude_deg': float(sc.trajectory.lat_deg),
            'initial_longitude_deg': float(sc.trajectory.lon_deg),
            'initial_height_m': float(sc.trajectory.h),
@@ -509,9 +506,11 @@ def alignment_params(sc, fine_filter, **overrides):
            'gyro_bias_instability_dph': float(s.gyro_markov_dph),
            'gyro_bias_tau_s': float(s.gyro_markov_tau_s),
            'accel_bias_ug': accel_bias, 'accel_vrw_ug_rthz': float(s.accel_vrw_ug_rthz)}
-    # the gyro triad's scale factors and misalignment (issue 44), where the IMU has them
+    # the triads' scale factors and misalignment (issue 44), where the IMU has them
     for name, value in (('gyro_scale_factor_ppm', s.gyro_scale_ppm),
-                        ('gyro_misalignment_ppm', s.gyro_misalign_ppm)):
+                        ('gyro_misalignment_ppm', s.gyro_misalign_ppm),
+                        ('accel_scale_factor_ppm', s.accel_scale_ppm),
+                        ('accel_misalignment_ppm', s.accel_misalign_ppm)):
         if np.any(value):
             out[name] = float(np.max(np.abs(value)))
     if np.any(sc.gnss_lever_arm_m):
