@@ -8,9 +8,13 @@ An accelerometer triad measures ``(I + S + M) f_b`` (issue 44): scale factors ``
 * **Under gravity** (``f_b = C_n_b g``, nearly constant for a ground vehicle): a constant
   error in body axes, ``m g`` on each horizontal axis and ``s g`` on the vertical one. To
   the filters it is an accelerometer bias, which turns with the vehicle and is observed
-  as one. :meth:`ForceError.set_force_error` adds its variance to the prior of the
-  engine's accelerometer-bias states (``(m g)^2`` horizontally, ``(s g)^2`` vertically:
-  the tilt/bias split sees them as bias).
+  as one: ``accel_bias_ug`` must cover it (the self-check's MEMS class values do,
+  :mod:`.self_check`; ``sim.presets.alignment_params`` folds a simulated IMU's
+  misalignment into it). It is not added to the bias prior here: a wider bias prior
+  also raises the threshold under which the horizontal force is dropped from the model
+  (:mod:`.force`), and on the real fog_mems car (100 s, a consumer-class MEMS IMU the
+  self-check gives 0.5 % misalignment) it took the heading from 2.15 to 4.88 deg RMS
+  (published unknown at the end) with the fog parameters.
 * **Under the vehicle's own acceleration** ``a_b = f_b - C_n_b g``: the error
   ``(S + M) a_b`` acts only while the vehicle brakes, accelerates or turns, exactly when
   the filter learns tilt and heading from the force: a vertical accelerometer that
@@ -39,7 +43,7 @@ An accelerometer triad measures ``(I + S + M) f_b`` (issue 44): scale factors ``
   defaults; none at 2x or 3x). The bias prior takes the told sigmas as they are.
 
 Not in the seeds (their IMUs are calibrated; seed 001/003's models have an
-accelerometer bias only and seed 000's none): the raw triads of an industrial MEMS AHRS
+accelerometer bias only and seed 000's a tilt for it): the raw triads of an industrial MEMS AHRS
 have scale factors of 0.3-0.5 % and axis misalignment of 0.5 % (issue 44), which the
 seeds' models cannot represent. Here they are neither states nor estimated: the
 filters are told how much error they can make, like the gyro's (:mod:`.rotation_error`).
@@ -78,9 +82,8 @@ class ForceError:
     def set_force_error(self, scale, misalignment):
         """Model accelerometer scale factors ``scale`` and misalignment ``misalignment`` (1-sigma).
 
-        Call once, before the first epoch: the gravity part joins the accelerometer-bias
-        prior of an engine with bias states (module docstring); the velocity noise takes
-        :data:`~.rotation_error.COHERENCE_FACTOR` times the sigmas.
+        The velocity noise takes :data:`~.rotation_error.COHERENCE_FACTOR` times the
+        sigmas; the gravity part is left to ``accel_bias_ug`` (module docstring).
         """
         if scale <= 0.0 and misalignment <= 0.0:
             self._force_sigma = None
@@ -88,16 +91,6 @@ class ForceError:
         self._force_sigma = (COHERENCE_FACTOR * float(scale),
                              COHERENCE_FACTOR * float(misalignment))
         self._force_V = np.zeros(3)
-        i_nab = getattr(self, 'i_nab', None)
-        if i_nab is not None:
-            g = earth.gravity(self.mech.lat, self.mech.h)
-            # a level vehicle's body z is along gravity: the horizontal axes' misalignment
-            # into it and its own scale factor are the bias the error makes
-            add = np.array([misalignment, misalignment, scale]) * g
-            P = self.kf.P.copy()
-            k = np.arange(len(P))[i_nab]
-            P[k, k] += add ** 2
-            self.kf.P = P
 
     def _force_error_noise(self, T):
         """Velocity process noise (n, n) of the force since the last call (``T`` s), or None."""
