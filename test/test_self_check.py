@@ -292,3 +292,37 @@ def test_latitude_not_set_with_a_tactical_gyro_is_unknown_and_so_is_the_heading(
     told = check(still(gyro_bias=(0.0, 0.5 * DPH, 0.0), arw=0.05 * DPSH), POS.copy(),
                  {**cfg, 'initial_latitude_deg': 34.0}, gnss=GnssBuffer())
     assert told.heading_observable and told.latitude is None and not told.latitude_unknown
+
+
+def test_a_moving_mems_triad_gets_its_class_biases_and_scale_factors_never_narrowed():
+    """Raw MEMS AHRS triads' gyro noise (0.42 deg/sqrt(h)) on a moving base against the
+    defaults: the gyro bias is raised to the class floor (500 deg/h, not 67 x 0.42 = 28),
+    the accelerometer bias to the industrial class's 9000 ug, and the gyro and
+    accelerometer scale factors and misalignment to the class's (issue 44); a model told
+    more keeps it."""
+    from sins_align_ros.align.self_check import (ACCEL_SCALE_BY_GYRO_NOISE,
+                                                 GYRO_BIAS_BY_GYRO_NOISE_MOVING)
+    c = check(still(arw=0.42 * DPSH, vrw=120.0 * UG), POS, DEFAULTS, at_rest=False)
+    assert c.widened['gyro_bias_dph'] == GYRO_BIAS_BY_GYRO_NOISE_MOVING[2][1] == 500.0
+    assert c.widened['accel_bias_ug'] == 9000.0
+    scale, mis = ACCEL_SCALE_BY_GYRO_NOISE[2][1]
+    assert c.widened['accel_scale_factor_ppm'] == scale >= 3000.0
+    assert c.widened['accel_misalignment_ppm'] == mis >= 5000.0
+    assert any('accel_misalignment_ppm raised' in s and 'velocity error' in s
+               for s in c.findings)
+    told = dict(DEFAULTS, accel_scale_factor_ppm=9000.0, accel_misalignment_ppm=9000.0,
+                gyro_bias_dph=900.0)
+    c = check(still(arw=0.42 * DPSH, vrw=120.0 * UG), POS, told, at_rest=False)
+    assert not {'accel_scale_factor_ppm', 'accel_misalignment_ppm',
+                'gyro_bias_dph'} & set(c.widened)
+
+
+def test_the_navigation_and_tactical_classes_are_as_before():
+    from sins_align_ros.align.self_check import (ACCEL_BIAS_BY_GYRO_NOISE,
+                                                 ACCEL_SCALE_BY_GYRO_NOISE,
+                                                 GYRO_BIAS_BY_GYRO_NOISE_MOVING)
+    assert ACCEL_BIAS_BY_GYRO_NOISE[:2] == ((0.003, 100.0), (0.15, 500.0))
+    assert [v for _, v in ACCEL_SCALE_BY_GYRO_NOISE[:2]] == [(0.0, 0.0)] * 2
+    assert [v for _, v in GYRO_BIAS_BY_GYRO_NOISE_MOVING[:2]] == [0.0, 0.0]
+    # the consumer class keeps 67 x its noise: our MEMS preset's 200 deg/h at 3 deg/sqrt(h)
+    assert GYRO_BIAS_BY_GYRO_NOISE_MOVING[3][1] == 0.0

@@ -32,6 +32,7 @@ from ..nav.mechanization import MechanizationOptions, Strapdown
 from ..units import DPH, UG
 from .epoch_noise import EpochNoise
 from .force import ForceModel
+from .force_error import ForceError
 from .gnss_gate import FilterDiverged
 from .heading_update import ExternalHeading
 from .rotation_error import RotationError
@@ -289,7 +290,7 @@ class ConsistencyRemedies:
 
 
 class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHeading,
-                      EpochNoise, RotationError):
+                      EpochNoise, RotationError, ForceError):
     """Mechanization + error-state filter at GNSS epochs; see the module docstring.
 
     Parameters
@@ -436,15 +437,16 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
 
         ``diag(Qc) T`` plus a dropped force's velocity noise
         (:meth:`~.force.ForceModel._force_noise`) and the rotation-proportional noise of the
-        gyro scale factors and misalignment (:mod:`.rotation_error`). An adaptive filter
+        gyro scale factors and misalignment (:mod:`.rotation_error`) and the accelerometer's
+        force-proportional velocity noise (:mod:`.force_error`). An adaptive filter
         keeps its own Q; those two parts are lent to it for the step and taken back after
         it (:meth:`_return_process_noise`).
         """
         T = max(self.sums.T, 1e-3)
         E = self._force_noise(T)
-        E_rot = self._rotation_noise(T)
-        if E_rot is not None:
-            E = E_rot if E is None else E + E_rot
+        for E_more in (self._rotation_noise(T), self._force_error_noise(T)):
+            if E_more is not None:
+                E = E_more if E is None else E + E_more
         if not self.adaptive:
             self.kf.Q = np.diag(self.Qc * T) + (0.0 if E is None else E)
             return None

@@ -287,8 +287,12 @@ class IntegratedNavigation(GnssAidedEngine):
         else:
             Phi = lc.transition(self._F, T)
         Q = self._process_noise(Phi, T)
-        E_rot = self._rotation_noise(T)        # gyro scale factors, misalignment
-        self.kf.Q = Q if E_rot is None else Q + E_rot
+        # gyro scale factors and misalignment (:mod:`.rotation_error`), the accelerometer's
+        # (:mod:`.force_error`)
+        for E in (self._rotation_noise(T), self._force_error_noise(T)):
+            if E is not None:
+                Q = Q + E
+        self.kf.Q = Q
 
     def _process_noise(self, Phi, T):
         """Q (n, n) of ``T`` s with transition ``Phi``: the trapezoid, a dropped force's part."""

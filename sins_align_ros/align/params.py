@@ -151,6 +151,14 @@ ALIGNMENT_PARAMS = (
           'sigma per off-diagonal entry, ppm (filter model, as gyro_scale_factor_ppm: a turn '
           'about one axis leaks into the other two)', 0.0, 1e5),
     Param('accel_bias_ug', 100.0, 'accelerometer constant bias, 1 sigma, micro-g', 0.0, 1e5),
+    Param('accel_scale_factor_ppm', 0.0, 'accelerometer scale-factor error, 1 sigma per '
+          'axis, ppm (filter model: a velocity error that grows with the velocity the vehicle '
+          'gains, and under gravity a vertical bias; GNSS-aided filters; the self-check raises '
+          'it to the class its gyro noise shows on a moving base)', 0.0, 1e5),
+    Param('accel_misalignment_ppm', 0.0, 'accelerometer axis misalignment (non-'
+          'orthogonality), 1 sigma per off-diagonal entry, ppm (filter model, as '
+          'accel_scale_factor_ppm: an acceleration along one axis leaks into the other two, '
+          'and gravity into the horizontal axes as a bias)', 0.0, 1e5),
     Param('accel_vrw_ug_rthz', 10.0, 'accelerometer white noise, micro-g/sqrt(Hz)', 0.0, 1e5),
     Param('zero_velocity_sigma', 0.01, 'zero-velocity measurement noise, m/s (still base)',
           1e-5, 10.0),

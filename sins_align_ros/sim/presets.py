@@ -492,15 +492,16 @@ def alignment_params(sc, fine_filter, **overrides):
     (no filter models a varying accelerometer bias), the white noises, the GNSS noise
     (with its Gauss-Markov position error where the receiver has one) and the
     scenario's position as the initial one; the installation (lever arm,
-    mounting) when the scenario has one; the gyro scale factors and misalignment where
-    the IMU has them (the accelerometer misalignment, a constant horizontal error under
-    gravity, joins the accelerometer bias).
+    mounting) when the scenario has one; the gyro and accelerometer scale factors and
+    misalignment where the IMU has them (the accelerometer misalignment's part under
+    gravity, a constant horizontal error, joins the accelerometer bias as well:
+    :mod:`~sins_align_ros.align.force_error`).
     ``sc.extra['alignment']`` adds scenario-specific settings; keyword overrides win.
     """
     s = sc.imu
     gyro_bias = float(np.max(np.abs(s.gyro_bias_dph)))
     # the accelerometer misalignment turns gravity into a constant horizontal error, a bias
-    # to the filters (1e-6 g per ppm)
+    # to the filters (1e-6 g per ppm; align/force_error.py models the rest of it)
     accel_bias = float(np.hypot(np.hypot(np.max(np.abs(s.accel_bias_ug)), s.accel_markov_ug),
                                 np.max(np.abs(s.accel_misalign_ppm))))
     out = {'fine_filter': fine_filter, 'initial_latitude_deg': float(sc.trajectory.lat_deg),
@@ -510,9 +511,11 @@ def alignment_params(sc, fine_filter, **overrides):
            'gyro_bias_instability_dph': float(s.gyro_markov_dph),
            'gyro_bias_tau_s': float(s.gyro_markov_tau_s),
            'accel_bias_ug': accel_bias, 'accel_vrw_ug_rthz': float(s.accel_vrw_ug_rthz)}
-    # the gyro triad's scale factors and misalignment (issue 44), where the IMU has them
+    # the triads' scale factors and misalignment (issue 44), where the IMU has them
     for name, value in (('gyro_scale_factor_ppm', s.gyro_scale_ppm),
-                        ('gyro_misalignment_ppm', s.gyro_misalign_ppm)):
+                        ('gyro_misalignment_ppm', s.gyro_misalign_ppm),
+                        ('accel_scale_factor_ppm', s.accel_scale_ppm),
+                        ('accel_misalignment_ppm', s.accel_misalign_ppm)):
         if np.any(value):
             out[name] = float(np.max(np.abs(value)))
     if np.any(sc.gnss_lever_arm_m):
