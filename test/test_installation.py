@@ -55,7 +55,8 @@ def test_mounting_rotation_is_undone_exactly():
     assert 'aligned' not in set(rc.out.phase)
     fine_rows = rc.out.phase == 'fine'
     assert fine_rows.sum() > 1000 and np.all(rc.out.sigma[fine_rows] > 100 * DEG)
-    assert 'imu_mounting_rpy_deg untold' in p.status()['not_aligned_reason']
+    why = p.status()['not_aligned_reason']
+    assert 'imu_mounting_rpy_deg untold' in why or 'imu_mounting_rpy_deg:' in why, why
     e = p.expectation()
     assert e.t_aligned == np.inf and 'imu_mounting_rpy_deg' in e.note
 
@@ -251,8 +252,14 @@ def test_an_imu_turned_about_the_vertical_and_untold_is_found_under_way(name):
     sc.imu_mounting_rpy_deg = (0.0, 0.0, 90.0)
     run = run_scenario(sc, 1000, 'auto', imu_mounting_rpy_deg=(0.0, 0.0, 0.0))
     p = run.pipeline
-    assert 'turned about the vertical' in p.fine.mounting_doubt
+    # the mounting check (sideslip.py), or the slow-error monitor first (slow_monitor.py: the
+    # heading off the course on straight legs, the same evidence): either names the mounting
+    # (on the ship the monitor fires first and opens the heading, so the mounting check, which
+    # judges only a heading known within 10 deg, never reaches its verdict)
+    found = p.fine.mounting_doubt or (p.fine.slow.finding if p.fine.slow else '')
+    assert 'turned about the vertical' in found
     assert 'aligned' not in set(run.out.phase)
     f = run.final
     assert np.all(np.abs(f.euler) <= 3.0 * f.sigma)
-    assert 'imu_mounting_rpy_deg untold' in p.status()['not_aligned_reason']
+    why = p.status()['not_aligned_reason']
+    assert 'imu_mounting_rpy_deg untold' in why or 'imu_mounting_rpy_deg:' in why, why

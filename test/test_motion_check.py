@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from sins_align_ros.align.motion_check import TURN_RATE, WINDOW_S, MotionCheck
+from sins_align_ros.align.rotation_error import COHERENCE_FACTOR
 from sins_align_ros.align.self_check import (ACCEL_VRW_BY_GYRO_NOISE, NOISE_RATIO,
                                              SCALE_BY_GYRO_NOISE, difference_density)
 from sins_align_ros.eval.integrity import run_integrity
@@ -153,7 +154,8 @@ def test_a_robot_that_waited_still_widens_its_noise_once_it_drives():
     assert arw > 10.0 * NOISE_RATIO * told
     assert eng.Qc[eng.i_phi] == pytest.approx((arw * DPSH) ** 2, rel=1e-9)
     # the turns: the scale factors of a MEMS triad
-    assert eng._rot_sigma == (0.02, 0.005)
+    # (the model takes COHERENCE_FACTOR times the class's sigmas: rotation_error.py)
+    assert eng._rot_sigma == (COHERENCE_FACTOR * 0.02, COHERENCE_FACTOR * 0.005)
     texts = [text for lvl, text in p.conditions() if lvl == 1]
     assert any('gyro_arw_dpsh widened in the running filter' in x for x in texts)
     assert any('gyro_scale_factor_ppm' in x for x in texts)

@@ -259,8 +259,9 @@ class SlowErrorMonitor:
                         f'{len(zs)} straight legs running ({min(map(abs, zs)):.1f}-'
                         f'{max(map(abs, zs)):.1f} sigma, sideslip allowed '
                         f'{math.degrees(math.sqrt(self.var_s)):g} deg): a slow model error '
-                        '(gyro scale factor, misalignment, bias?); heading, tilt and bias '
-                        'covariance inflated')
+                        '(gyro scale factor, misalignment, bias?), or an IMU mounted turned '
+                        'about the vertical and untold (imu_mounting_rpy_deg: the two look '
+                        'alike on straight legs); heading, tilt and bias covariance inflated')
         pending, self._pending = self._pending, []
         return self._due(pending)
 
