@@ -11,8 +11,9 @@ import pytest
 
 from sins_align_ros.align.motion_check import TURN_RATE, WINDOW_S, MotionCheck
 from sins_align_ros.align.rotation_error import COHERENCE_FACTOR
-from sins_align_ros.align.self_check import (ACCEL_VRW_BY_GYRO_NOISE, NOISE_RATIO,
-                                             SCALE_BY_GYRO_NOISE, difference_density)
+from sins_align_ros.align.self_check import (ACCEL_SCALE_BY_GYRO_NOISE, ACCEL_VRW_BY_GYRO_NOISE,
+                                             NOISE_RATIO, SCALE_BY_GYRO_NOISE,
+                                             difference_density)
 from sins_align_ros.eval.integrity import run_integrity
 from sins_align_ros.eval.run import run_scenario
 from sins_align_ros.models.stationary import NoiseSpec
@@ -32,10 +33,13 @@ class Engine:
         self.Qc = np.r_[[noise.accel_vrw ** 2] * 2, [0.0] * 2, [noise.gyro_arw ** 2] * 3,
                         [1e-12] * 3, [0.0] * 3]
         self._Qc0 = self.Qc.copy()
-        self.rotation = None
+        self.rotation = self.force = None
 
     def set_rotation_error(self, scale, misalignment):
         self.rotation = (scale, misalignment)
+
+    def set_force_error(self, scale, misalignment):
+        self.force = (scale, misalignment)
 
 
 def _samples(n, arw, vrw, rate=0.0, seed=1):
@@ -113,13 +117,18 @@ def test_turns_take_the_scale_factors_of_the_gyros_class(gyro_dpsh, mems):
     t, dth, dv, dt = _samples(n, gyro_dpsh * DPSH, 120.0 * UG, rate=1.5 * TURN_RATE)
     chk.push(t, dth, dv, dt)
     chk.epoch(t[-1], eng)
-    scale, mis = next(v for edge, v in SCALE_BY_GYRO_NOISE
-                      if difference_density(dth / DT, DT) / DPSH <= edge)
+    arw = difference_density(dth / DT, DT) / DPSH
+    scale, mis = next(v for edge, v in SCALE_BY_GYRO_NOISE if arw <= edge)
+    a_scale, a_mis = next(v for edge, v in ACCEL_SCALE_BY_GYRO_NOISE if arw <= edge)
     if mems:
         assert eng.rotation == (scale * 1e-6, mis * 1e-6) == (0.02, 0.005)
         assert chk.widened['gyro_misalignment_ppm'] == pytest.approx(5000.0)
+        # the accelerometer triad of the same class (a MEMS AHRS's raw triads)
+        assert eng.force == (a_scale * 1e-6, a_mis * 1e-6) and a_scale > 0.0
+        assert chk.widened['accel_scale_factor_ppm'] == pytest.approx(a_scale)
     else:                                       # tactical class: none
         assert eng.rotation is None and scale == 0.0
+        assert eng.force is None and a_scale == 0.0
     # a tactical gyro whose window is noisy from vibration keeps its class's (none)
     model = NoiseSpec(0.0, 0.05 * DPSH, 0.0, 120.0 * UG)
     chk, eng = MotionCheck(model), Engine(model)

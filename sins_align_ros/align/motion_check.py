@@ -22,7 +22,10 @@ checked as the coarse self-check checks a moving base, with its estimators:
   the scale factors and axis misalignment of the class the gyro noise shows
   (:data:`~.self_check.SCALE_BY_GYRO_NOISE`: 2 % and 0.5 % for MEMS triads, none for the
   tactical and navigation classes) then replace the model's where larger
-  (``engine.set_rotation_error``, :mod:`.rotation_error`). The class is that of the
+  (``engine.set_rotation_error``, :mod:`.rotation_error`), and so do the accelerometer
+  triad's of the same class (:data:`~.self_check.ACCEL_SCALE_BY_GYRO_NOISE`,
+  ``engine.set_force_error``, :mod:`.force_error`: a car that stood still through the
+  coarse window brakes and turns with them too). The class is that of the
   smaller of the window's noise and the model's at the start of the stage (as the coarse
   self-check left it): vibration makes a tactical gyro on a vibrating chassis look like a
   MEMS one in motion, and its scale factors are still a tactical gyro's. (The coarse
@@ -40,8 +43,15 @@ from dataclasses import replace
 import numpy as np
 
 from ..units import DEG, DPSH, UG
-from .self_check import (ACCEL_VRW_BY_GYRO_NOISE, NOISE_RATIO, SCALE_BY_GYRO_NOISE,
-                         difference_density)
+from .self_check import (ACCEL_SCALE_BY_GYRO_NOISE, ACCEL_VRW_BY_GYRO_NOISE, NOISE_RATIO,
+                         SCALE_BY_GYRO_NOISE, difference_density)
+
+#: per triad: the class table of its scale factor and misalignment (ppm), the engine's
+#: setter, and what a 1 % error does (the finding's example)
+TRIADS = (('gyro', SCALE_BY_GYRO_NOISE, 'set_rotation_error',
+           'a 90 deg turn: {:.2g} deg of heading', 90.0),
+          ('accel', ACCEL_SCALE_BY_GYRO_NOISE, 'set_force_error',
+           'a 3 m/s^2 braking: {:.2g} m/s^2 of force error', 3.0))
 
 #: seconds of IMU samples judged at a time
 WINDOW_S = 20.0
@@ -77,16 +87,19 @@ class MotionCheck:
     """The sensor model against the fine stage's IMU windows (module docstring).
 
     ``noise``: the model the engine was built with (:class:`NoiseSpec`, SI, as the coarse
-    self-check widened it); ``scale``, ``misalignment``: the gyro scale-factor and
-    misalignment 1-sigma the engine models (-).
+    self-check widened it); ``scale``, ``misalignment`` (and ``accel_scale``,
+    ``accel_misalignment``): the gyro (accelerometer) scale-factor and misalignment
+    1-sigma the engine models (-).
     """
 
-    def __init__(self, noise, scale=0.0, misalignment=0.0, window_s=WINDOW_S):
+    def __init__(self, noise, scale=0.0, misalignment=0.0, window_s=WINDOW_S,
+                 accel_scale=0.0, accel_misalignment=0.0):
         self.noise = noise
         #: the gyro noise the grade is judged by at most (the model's at the start), rad/sqrt(s)
         self.class_arw = noise.gyro_arw
-        self.scale = float(scale)
-        self.misalignment = float(misalignment)
+        #: triad -> (scale factor, misalignment) 1-sigma the engine models (-)
+        self.scales = {'gyro': (float(scale), float(misalignment)),
+                       'accel': (float(accel_scale), float(accel_misalignment))}
         self.window_s = float(window_s)
         self._t, self._w, self._f, self._dt = [], [], [], []
         #: start of the first interval kept (s), None with nothing kept
@@ -167,20 +180,27 @@ class MotionCheck:
             did = True
         if rate >= TURN_RATE:
             grade = min(arw, self.class_arw) / DPSH
-            scale, mis = (v * 1e-6 for v in class_value(SCALE_BY_GYRO_NOISE, grade))
-            if scale > self.scale or mis > self.misalignment:
-                self.scale, self.misalignment = max(scale, self.scale), max(mis,
-                                                                            self.misalignment)
-                engine.set_rotation_error(self.scale, self.misalignment)
-                self._found('gyro_scale_factor_ppm', self.scale * 1e6,
-                            f'turns at up to {rate / DEG:.0f} deg/s with a gyro of the MEMS '
-                            f'class ({grade:.3g} deg/sqrt(h)): gyro_scale_factor_ppm '
-                            f'{self.scale * 1e6:.3g} and gyro_misalignment_ppm '
-                            f'{self.misalignment * 1e6:.3g} taken in the running filter (a '
-                            f'90 deg turn: {self.scale * 90:.2g} deg of heading)')
-                self.widened['gyro_misalignment_ppm'] = self.misalignment * 1e6
-                did = True
+            for triad, table, setter, example, unit in TRIADS:
+                did = self._raise_scales(engine, triad, class_value(table, grade), setter,
+                                         f'turns at up to {rate / DEG:.0f} deg/s with a gyro '
+                                         f'of the MEMS class ({grade:.3g} deg/sqrt(h))',
+                                         example, unit) or did
         return did
+
+    def _raise_scales(self, engine, triad, ppm, setter, why, example, unit):
+        """Take the class's ``ppm`` (scale, misalignment) of ``triad`` where larger; True if so."""
+        old = self.scales[triad]
+        new = tuple(max(v * 1e-6, o) for v, o in zip(ppm, old))
+        if new == old:
+            return False
+        self.scales[triad] = new
+        getattr(engine, setter)(*new)
+        self._found(f'{triad}_scale_factor_ppm', new[0] * 1e6,
+                    f'{why}: {triad}_scale_factor_ppm {new[0] * 1e6:.3g} and '
+                    f'{triad}_misalignment_ppm {new[1] * 1e6:.3g} taken in the running filter '
+                    f'({example.format(new[0] * unit)})')
+        self.widened[f'{triad}_misalignment_ppm'] = new[1] * 1e6
+        return True
 
     def _found(self, name, value, text):
         self.widened[name] = value
@@ -206,4 +226,6 @@ def for_stage(engine, cfg, noise):
     if engine.restages or not cfg['sensor_self_check'] or noise is None:
         return None
     return MotionCheck(noise, cfg['gyro_scale_factor_ppm'] * 1e-6,
-                       cfg['gyro_misalignment_ppm'] * 1e-6)
+                       cfg['gyro_misalignment_ppm'] * 1e-6,
+                       accel_scale=cfg['accel_scale_factor_ppm'] * 1e-6,
+                       accel_misalignment=cfg['accel_misalignment_ppm'] * 1e-6)
