@@ -162,22 +162,19 @@ class MotionCheck:
                             motion_check_max_rate_dps=rate / DEG,
                             motion_check_windows=self.n_windows)
         did = False
-        if arw > NOISE_RATIO * self.noise.gyro_arw:
-            widen_process_noise(engine, engine.i_phi, (arw / self.noise.gyro_arw) ** 2, arw ** 2)
-            self._found('gyro_arw_dpsh', arw / DPSH,
-                        f'gyro white noise {arw / DPSH:.3g} deg/sqrt(h) in motion, '
-                        f'{self.noise.gyro_arw / DPSH:.3g} in the model (vibration?): '
-                        'gyro_arw_dpsh widened in the running filter')
-            self.noise = replace(self.noise, gyro_arw=arw)
-            did = True
-        if vrw > NOISE_RATIO * self.noise.accel_vrw:
-            widen_process_noise(engine, engine.i_v, (vrw / self.noise.accel_vrw) ** 2, vrw ** 2)
-            self._found('accel_vrw_ug_rthz', vrw / UG,
-                        f'accelerometer white noise {vrw / UG:.3g} ug/sqrt(Hz) in motion '
-                        f'(counted up to its class\'s), {self.noise.accel_vrw / UG:.3g} in the '
-                        'model: accel_vrw_ug_rthz widened in the running filter')
-            self.noise = replace(self.noise, accel_vrw=vrw)
-            did = True
+        for name, field, rows, est, unit, label, what in (
+                ('gyro_arw_dpsh', 'gyro_arw', engine.i_phi, arw, DPSH, 'deg/sqrt(h)',
+                 'gyro white noise {:.3g} {} in motion, {:.3g} in the model (vibration?)'),
+                ('accel_vrw_ug_rthz', 'accel_vrw', engine.i_v, vrw, UG, 'ug/sqrt(Hz)',
+                 "accelerometer white noise {:.3g} {} in motion (counted up to its class's), "
+                 '{:.3g} in the model')):
+            model = getattr(self.noise, field)
+            if est > NOISE_RATIO * model:
+                widen_process_noise(engine, rows, (est / model) ** 2, est ** 2)
+                self._found(name, est / unit, what.format(est / unit, label, model / unit)
+                            + f': {name} widened in the running filter')
+                self.noise = replace(self.noise, **{field: est})
+                did = True
         if rate >= TURN_RATE:
             grade = min(arw, self.class_arw) / DPSH
             for triad, table, setter, example, unit in TRIADS:
