@@ -56,8 +56,24 @@ def run(make_node, name, make_executor=None, done=lambda node: False, args=None)
     finally:
         if node is not None:
             node.destroy_node()
-        rclpy.try_shutdown()
+        _shutdown()
     return 0
+
+
+def _shutdown():
+    """Shut rclpy down unless a Ctrl-C already did.
+
+    rclpy's ``try_shutdown`` checks ``ok()`` and then shuts down; its SIGINT handler shuts
+    the context down on its own thread, and when it lands between the two the second
+    shutdown raises "rcl_shutdown already called" (seen once in CI: exit code 1 and a
+    traceback on a clean Ctrl-C). A context that is no longer ok is what we wanted.
+    """
+    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+    try:
+        rclpy.try_shutdown()
+    except _rclpy.RCLError:
+        if rclpy.ok():
+            raise
 
 
 def spin(node, executor, done=lambda node: False, timeout_sec=0.1):
