@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from sins_align_ros.align import rotation_error, self_check
-from sins_align_ros.align.force_error import FORCE_MEMORY_S, ForceError, force_variance
-from sins_align_ros.align.rotation_error import COHERENCE_FACTOR
+from sins_align_ros.align.force_error import FORCE_MEMORY_S, ForceError
+from sins_align_ros.align.rotation_error import COHERENCE_FACTOR, coherent_variance
 from sins_align_ros.eval.integrity import run_integrity
 from sins_align_ros.eval.run import run_pipeline
 from sins_align_ros.eval.scenarios import simulate
@@ -92,7 +92,7 @@ def test_no_error_configured_is_no_noise_and_no_prior():
 def test_force_variance_closed_form():
     V = np.array([3.0, -4.0, 12.0])
     s, m = 0.01, 0.002
-    assert force_variance(V, s, m) == pytest.approx(
+    assert coherent_variance(V, s, m) == pytest.approx(
         [s * s * 9 + m * m * 160, s * s * 16 + m * m * 153, s * s * 144 + m * m * 25])
 
 

@@ -48,24 +48,14 @@ have scale factors of 0.3-0.5 % and axis misalignment of 0.5 % (issue 44), which
 seeds' models cannot represent. Here they are neither states nor estimated: the
 filters are told how much error they can make, like the gyro's (:mod:`.rotation_error`).
 """
-import math
 
 import numpy as np
 
 from ..nav import earth
-from .rotation_error import COHERENCE_FACTOR
+from .rotation_error import COHERENCE_FACTOR, coherent_increment, state_noise
 
 #: seconds over which the velocity gained that the errors act on is remembered
 FORCE_MEMORY_S = 10.0
-
-
-def force_variance(V, scale, misalignment):
-    """Variance (3,) per body axis of the velocity error ``(S + M) V`` for a velocity ``V`` (3,).
-
-    ``scale``, ``misalignment``: the 1-sigma of each diagonal and off-diagonal entry.
-    """
-    v2 = np.asarray(V, dtype=float) ** 2
-    return scale * scale * v2 + misalignment * misalignment * (v2.sum() - v2)
 
 
 class ForceError:
@@ -104,14 +94,6 @@ class ForceError:
         # the vehicle's velocity gain over the interval (specific force less gravity's)
         dV_n = s.dv_sum + np.array([0.0, 0.0, -g]) * s.T
         dV_b = C.T @ dV_n
-        scale, mis = self._force_sigma
-        A = self._force_V * math.exp(-T / FORCE_MEMORY_S)
-        B = A + dV_b
-        inc = np.maximum(force_variance(B, scale, mis) - force_variance(A, scale, mis), 0.0)
-        self._force_V = B
-        cov = (C * inc) @ C.T
-        n = len(self.kf.x)
-        k = np.arange(n)[self.i_v]
-        E = np.zeros((n, n))
-        E[np.ix_(k, k)] = cov[:len(k), :len(k)]
-        return E
+        self._force_V, inc = coherent_increment(self._force_V, dV_b, T, FORCE_MEMORY_S,
+                                                *self._force_sigma)
+        return state_noise(len(self.kf.x), self.i_v, C, inc)

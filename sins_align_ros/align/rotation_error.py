@@ -39,6 +39,38 @@ ROTATION_MEMORY_S = 30.0
 COHERENCE_FACTOR = 2.0
 
 
+def coherent_variance(A, scale, misalignment):
+    """Variance (3,) per body axis of the error ``(S + M) A`` of a body vector ``A`` (3,).
+
+    ``scale``, ``misalignment``: the 1-sigma of each diagonal and off-diagonal entry of a
+    triad's scale-factor and misalignment matrix (a rotation for the gyro, a velocity gain
+    for the accelerometer: :mod:`.force_error`).
+    """
+    a2 = np.asarray(A, dtype=float) ** 2
+    return scale * scale * a2 + misalignment * misalignment * (a2.sum() - a2)
+
+
+def coherent_increment(A, dA, T, memory_s, scale, misalignment):
+    """Add ``dA`` (3,) to the remembered body vector ``A`` (3,) faded over ``T`` s.
+
+    Returns ``(B, inc)``: the new remembered vector and the variance per body axis it adds,
+    ``var(B) - var(A)`` (never below zero: turning back adds nothing).
+    """
+    A = np.asarray(A, dtype=float) * math.exp(-T / memory_s)
+    B = A + dA
+    inc = np.maximum(coherent_variance(B, scale, misalignment)
+                     - coherent_variance(A, scale, misalignment), 0.0)
+    return B, inc
+
+
+def state_noise(n, rows, C, inc):
+    """Process noise (n, n): the body-axis variances ``inc`` turned by ``C`` into ``rows``."""
+    k = np.arange(n)[rows]
+    E = np.zeros((n, n))
+    E[np.ix_(k, k)] = ((C * inc) @ C.T)[:len(k), :len(k)]
+    return E
+
+
 class RotationError:
     """Mixin of :class:`~.aided.GnssAidedEngine`: the rotation-proportional process noise.
 
@@ -68,24 +100,11 @@ class RotationError:
             d = np.asarray(dtheta, dtype=float)
             self._rot += d if d.ndim == 1 else np.add.reduce(d, axis=0)
 
-    def _rotation_var(self, A):
-        """Variance (3,) per body axis of the attitude error after a rotation ``A`` (3,)."""
-        s, m = self._rot_sigma
-        a2 = A * A
-        return s * s * a2 + m * m * (a2.sum() - a2)
-
     def _rotation_noise(self, T):
         """Process noise (n, n) of the rotation since the last call, over ``T`` s, or None."""
         if self._rot_sigma is None:
             return None
-        A = self._rot_A * math.exp(-T / ROTATION_MEMORY_S)
-        B = A + self._rot
-        inc = np.maximum(self._rotation_var(B) - self._rotation_var(A), 0.0)
-        self._rot_A = B
+        self._rot_A, inc = coherent_increment(self._rot_A, self._rot, T, ROTATION_MEMORY_S,
+                                              *self._rot_sigma)
         self._rot = np.zeros(3)
-        n = len(self.kf.x)
-        k = np.arange(n)[self.i_phi]
-        C = self.mech.C_b_n
-        E = np.zeros((n, n))
-        E[np.ix_(k, k)] = (C * inc) @ C.T
-        return E
+        return state_noise(len(self.kf.x), self.i_phi, self.mech.C_b_n, inc)
