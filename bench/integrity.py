@@ -235,7 +235,7 @@ USEFUL_TILT_BY_BIAS = 1.5
 
 
 def usefulness(c, key, sc):
-    """What of the issue-44 usefulness bounds cell ``c`` of ground ``key`` misses ('' if none).
+    """Return what of issue 44's useful bounds cell ``c`` of ground ``key`` misses ('' if none).
 
     Heading: :data:`USEFUL_HEADING_DEG` on the mean published sigma at the end, none
     declared unknown, and with RTK every run ``aligned``; tilt: :data:`USEFUL_TILT_BY_BIAS`
