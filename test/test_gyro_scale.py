@@ -53,7 +53,13 @@ def _engine():
 
 def test_a_scale_factor_goes_to_the_states_and_the_misalignment_stays_noise():
     eng = _engine()
+    # no GNSS velocity measured yet: the turns cannot show the scale factor, noise keeps it
     eng.set_rotation_error(0.02, 0.005)
+    assert eng.i_sf is None and eng._rot_sigma == (COHERENCE_FACTOR * 0.02,
+                                                   COHERENCE_FACTOR * 0.005)
+    # with velocity and the heading known (0.6 deg: P0), states at the interval's end
+    eng.velocity_measured = True
+    eng._interval_ended(1.0)
     assert eng.n == 18 and eng.i_sf == slice(15, 18) and len(eng.Qc) == 18
     assert np.allclose(np.diag(eng.kf.P)[15:], (SCALE_STATE_FACTOR * 0.02) ** 2, rtol=1e-12)
     assert eng._rot_sigma == (0.0, COHERENCE_FACTOR * 0.005)

@@ -9,7 +9,6 @@ import math
 import numpy as np
 import pytest
 
-from sins_align_ros.align.gyro_scale import SCALE_STATE_FACTOR
 from sins_align_ros.align.motion_check import TURN_RATE, WINDOW_S, MotionCheck
 from sins_align_ros.align.rotation_error import COHERENCE_FACTOR
 from sins_align_ros.align.self_check import (ACCEL_SCALE_BY_GYRO_NOISE, ACCEL_VRW_BY_GYRO_NOISE,
@@ -163,10 +162,9 @@ def test_a_robot_that_waited_still_widens_its_noise_once_it_drives():
     arw = chk.widened['gyro_arw_dpsh']
     assert arw > 10.0 * NOISE_RATIO * told
     assert eng.Qc[eng.i_phi] == pytest.approx((arw * DPSH) ** 2, rel=1e-9)
-    # the turns: the scale factors of a MEMS triad, as states of the kf (gyro_scale.py),
-    # the misalignment as noise (COHERENCE_FACTOR times the class's: rotation_error.py)
-    assert eng._rot_sigma == (0.0, COHERENCE_FACTOR * 0.005)
-    assert eng.i_sf is not None and eng.sf_sigma == pytest.approx(SCALE_STATE_FACTOR * 0.02)
+    # the turns: the scale factors of a MEMS triad
+    # (the model takes COHERENCE_FACTOR times the class's sigmas: rotation_error.py)
+    assert eng._rot_sigma == (COHERENCE_FACTOR * 0.02, COHERENCE_FACTOR * 0.005)
     texts = [text for lvl, text in p.conditions() if lvl == 1]
     assert any('gyro_arw_dpsh widened in the running filter' in x for x in texts)
     assert any('gyro_scale_factor_ppm' in x for x in texts)

@@ -27,13 +27,15 @@ states' variance to it. Axis misalignment stays process noise (:mod:`.rotation_e
 six more states that a car turning about one axis cannot observe.
 
 The states replace the noise only once the heading is known to
-:data:`HEADING_MAX_DEG` (1-sigma): a turn observes the scale factor through the heading
-error it leaves (2 % of 90 deg: 1.8 deg), which a heading known to tens of degrees cannot
-show. Until then the noise carries the scale factors. Measured (robot_skid with a
-position-only receiver at 1 m/s, heading declared unknown all run, 4 seeds, raw AHRS
-triads): with the states from the first turn, the UKF told node defaults had 3 runs
-silent-wrong in tilt instead of 1, the states reading the unknown heading's effects as
-scale factor.
+:data:`HEADING_MAX_DEG` (1-sigma) and the filter measures GNSS velocity: a turn observes
+the scale factor through the heading error it leaves (2 % of 90 deg: 1.8 deg), which a
+heading known to tens of degrees cannot show, and which positions alone (a consumer
+receiver's, correlated over tens of seconds) show too weakly to tell it from their own
+errors. Until then the noise carries the scale factors. Measured with raw AHRS triads and
+node defaults: robot_skid with a position-only receiver (heading declared unknown all
+run, 4 seeds), states from the first turn: the UKF had 3 runs silent-wrong in tilt
+instead of 1; the car with a position-only receiver (6 seeds), states once the heading
+was known: 2 runs silent-wrong in heading instead of 1 (2-3 deg off under 0.6 deg).
 
 Not in the seeds (their IMUs are calibrated).
 """
@@ -64,6 +66,8 @@ class GyroScaleStates:
     sf_sigma = 0.0
     #: the scale factor (1-sigma) modelled, as states or still as noise
     sf_wanted = 0.0
+    #: the last GNSS epoch measured velocity (set by the engine's measurement)
+    velocity_measured = False
 
     def _take_scale_states(self, scale):
         """Model gyro scale factors of 1-sigma ``scale`` (-) as states: append or widen them.
@@ -74,7 +78,7 @@ class GyroScaleStates:
         self.sf_wanted = max(self.sf_wanted, float(scale))
         sigma = SCALE_STATE_FACTOR * self.sf_wanted
         if self.i_sf is None:
-            if self.kf.P[2, 2] > HEADING_MAX_VAR:
+            if not self._scale_observable():
                 return False
             self._append_scale_states(sigma * sigma)
         elif sigma > self.sf_sigma:
@@ -90,10 +94,13 @@ class GyroScaleStates:
 
         Called at the end of each filter interval.
         """
-        if (self.i_sf is None and self.sf_wanted > 0.0
-                and self.kf.P[2, 2] <= HEADING_MAX_VAR):
+        if self.i_sf is None and self.sf_wanted > 0.0 and self._scale_observable():
             mis = 0.0 if self._rot_sigma is None else self._rot_sigma[1] / COHERENCE_FACTOR
             self.set_rotation_error(self.sf_wanted, mis)
+
+    def _scale_observable(self):
+        """Tell whether turns show the scale factors: heading known, GNSS velocity measured."""
+        return self.velocity_measured and self.kf.P[2, 2] <= HEADING_MAX_VAR
 
     def _counts_rotation(self):
         return self.i_sf is not None

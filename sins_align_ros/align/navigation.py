@@ -358,7 +358,8 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
         z = [(lon - fix.lon) * (R_N + m.h) * math.cos(m.lat), (lat - fix.lat) * (R_M + m.h),
              h - fix.h]
         idx = [0, 1, 2]
-        if self.use_velocity and fix.v_n is not None:
+        self.velocity_measured = self.use_velocity and fix.v_n is not None
+        if self.velocity_measured:
             z += list(m.v_n - np.asarray(fix.v_n, dtype=float))
             idx += [3, 4, 5]
         return np.array(z), np.array(idx)
