@@ -132,3 +132,23 @@ def test_without_the_states_the_scale_factor_grows_the_heading_error_unseen(
     monkeypatch.setattr(IntegratedNavigation, '_take_scale_states', lambda self, s: False)
     _, r = _run(rtk_car)
     assert not r['silent'] and r['end_sigma'][2] > RTK_CAR_HEADING_SIGMA
+
+
+def test_the_published_heading_is_never_sharper_than_the_accelerometer_misalignment():
+    eng = _engine()
+    eng.velocity_measured = True
+    eng.set_rotation_error(0.02, 0.005)
+    eng.set_force_error(0.004, 0.005)
+    P = eng.kf.P.copy()
+    P[2, 2] = 1e-6                                     # heading 3.4'
+    P[0, 2] = P[2, 0] = 5e-7                           # correlated with the tilt
+    eng.kf.P = P
+    C = eng.attitude_cov()
+    # the misalignment's 0.5 % (17') of heading: row and column scaled together
+    assert C[2, 2] == pytest.approx(0.005 ** 2, rel=1e-12)
+    assert C[0, 2] == pytest.approx(5e-7 * 0.005 / 1e-3, rel=1e-12)
+    assert C[0, 0] == P[0, 0]
+    # a heading already wider keeps its own
+    P[2, 2] = 0.01 ** 2
+    eng.kf.P = P
+    assert eng.attitude_cov()[2, 2] == P[2, 2]
