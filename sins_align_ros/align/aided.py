@@ -356,8 +356,7 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
     def step_imu(self, dtheta, dv, dt):
         """Mechanize one sample; returns the current ``C_b_n`` (3, 3)."""
         dtheta, dv = self._correct_imu(dtheta, dv, dt)
-        if self._rot_sigma is not None:
-            self._add_rotation(dtheta)
+        self._add_rotation(dtheta)
         m = self.mech
         C = m.step(dtheta, dv, dt)
         self.sums.add(m, C, dt)

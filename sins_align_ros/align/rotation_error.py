@@ -75,36 +75,60 @@ class RotationError:
     """Mixin of :class:`~.aided.GnssAidedEngine`: the rotation-proportional process noise.
 
     The engine calls :meth:`_add_rotation` with the increments it mechanizes and takes
-    :meth:`_rotation_noise` into its process noise at every prediction.
+    :meth:`_rotation_noise` into its process noise at every prediction. An engine that
+    can carry the scale factors as states (:mod:`.gyro_scale`) takes them there through
+    :meth:`_take_scale_states`; the noise then keeps the misalignment part alone.
     """
 
-    #: (scale factor, misalignment) 1-sigma, rad/rad; None: not modelled
+    #: (scale factor, misalignment) 1-sigma of the noise, rad/rad; None: no noise
     _rot_sigma = None
+    #: body rotation (3,) summed over the current interval, rad; None: not counted
+    _rot = None
 
     def set_rotation_error(self, scale, misalignment):
         """Model gyro scale factors ``scale`` and misalignment ``misalignment`` (1-sigma, -).
 
-        Kept times :data:`COHERENCE_FACTOR` (module docstring).
+        The scale factors go to the engine's states when it has them
+        (:meth:`_take_scale_states`), else into the noise; the noise's sigmas are kept
+        times :data:`COHERENCE_FACTOR` (module docstring).
         """
+        scale, misalignment = float(scale), float(misalignment)
+        if scale > 0.0 and self._take_scale_states(scale):
+            scale = 0.0
+        if self._rot is None and self._counts_rotation():
+            self._rot = np.zeros(3)
         if scale <= 0.0 and misalignment <= 0.0:
             self._rot_sigma = None
             return
-        self._rot_sigma = (COHERENCE_FACTOR * float(scale),
-                           COHERENCE_FACTOR * float(misalignment))
-        self._rot = np.zeros(3)
+        self._rot_sigma = (COHERENCE_FACTOR * scale, COHERENCE_FACTOR * misalignment)
+        if not self._counts_rotation():        # (the states' transition keeps its interval)
+            self._rot = np.zeros(3)
         self._rot_A = np.zeros(3)
+
+    def _take_scale_states(self, scale):
+        """Carry gyro scale factors of 1-sigma ``scale`` as states; True if the engine does."""
+        return False
+
+    def _counts_rotation(self):
+        """Tell whether the engine needs the interval's body rotation without the noise."""
+        return False
 
     def _add_rotation(self, dtheta):
         """Count mechanized increments ``dtheta`` ((3,) or (N, 3), rad) into the interval."""
-        if self._rot_sigma is not None:
+        if self._rot is not None:
             d = np.asarray(dtheta, dtype=float)
             self._rot += d if d.ndim == 1 else np.add.reduce(d, axis=0)
 
     def _rotation_noise(self, T):
-        """Process noise (n, n) of the rotation since the last call, over ``T`` s, or None."""
+        """Process noise (n, n) of the rotation since the last call, over ``T`` s, or None.
+
+        Starts the next interval's body rotation (the engine's transition has read it).
+        """
+        if self._rot is None:
+            return None
+        rot, self._rot = self._rot, np.zeros(3)
         if self._rot_sigma is None:
             return None
-        self._rot_A, inc = coherent_increment(self._rot_A, self._rot, T, ROTATION_MEMORY_S,
+        self._rot_A, inc = coherent_increment(self._rot_A, rot, T, ROTATION_MEMORY_S,
                                               *self._rot_sigma)
-        self._rot = np.zeros(3)
         return state_noise(len(self.kf.x), self.i_phi, self.mech.C_b_n, inc)

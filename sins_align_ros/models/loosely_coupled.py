@@ -187,18 +187,23 @@ def transition(F, T):
     return np.eye(len(F)) + FT + 0.5 * FT @ FT
 
 
-def derivative18(x, f_n, v_n, C_b_n, lat, h, tau_g, tau_a):
+def derivative18(x, f_n, v_n, C_b_n, lat, h, tau_g, tau_a, w_b=None):
     """Noise-free ``x'`` of the 18-state model with the nonlinear attitude, (18,) or (18, N).
 
     Attitude and velocity rows: seed 004 eq. 3 (:func:`.large_misalignment.derivative`,
     ``phi`` the Euler-sequence misalignment) driven by ``eps_b + eps_r`` and ``nab``,
     plus the position-error terms of the linear model; position, drift and Markov rows
-    as :func:`F_matrix`. Arguments as there.
+    as :func:`F_matrix`. Arguments as there. ``w_b`` (3,) body rate, rad/s: ``x`` then
+    has 21 rows, the last three gyro scale-factor errors (random constants, not in seed
+    003; :mod:`sins_align_ros.align.gyro_scale`) that add ``w_b * ds`` to the drift.
     """
     x = np.asarray(x, dtype=float)
     single = x.ndim == 1
     X = x[:, None] if single else x
-    X12 = np.vstack([X[I_PHI], X[I_V], X[I_EPSB] + X[I_EPSR], X[I_NAB18]])
+    eps = X[I_EPSB] + X[I_EPSR]
+    if w_b is not None:
+        eps = eps + np.asarray(w_b, dtype=float)[:, None] * X[18:21]
+    X12 = np.vstack([X[I_PHI], X[I_V], eps, X[I_NAB18]])
     d12 = lm.derivative(X12, f_n, v_n, C_b_n, lat, h)
     _, _, Map, _, _, Mvp, Mpv, Mpp = _blocks(f_n, v_n, lat, h)
     D = D_pos(lat, h)
@@ -213,9 +218,9 @@ def derivative18(x, f_n, v_n, C_b_n, lat, h, tau_g, tau_a):
     return out[:, 0] if single else out
 
 
-def propagate18(x, f_n, v_n, C_b_n, lat, h, tau_g, tau_a, dt, substeps=1):
+def propagate18(x, f_n, v_n, C_b_n, lat, h, tau_g, tau_a, dt, substeps=1, w_b=None):
     """Discrete transition of :func:`derivative18` over ``dt`` by classical Runge-Kutta."""
-    args = (f_n, v_n, C_b_n, lat, h, tau_g, tau_a)
+    args = (f_n, v_n, C_b_n, lat, h, tau_g, tau_a, w_b)
     step = dt / substeps
     for _ in range(substeps):
         k1 = derivative18(x, *args)

@@ -1,0 +1,146 @@
+"""Gyro scale factors as filter states of the integrated-navigation engine (issue 44).
+
+A gyro triad measures ``(I + S) w`` (plus misalignment and bias): a scale-factor error
+``s_j`` turns every rotation ``A_j`` about body axis ``j`` into an attitude error
+``s_j A_j``. :mod:`.rotation_error` models it as process noise, which a turning vehicle
+pays at every turn: 2 % told (times its coherence factor 2) puts 3.6 deg of heading
+variance into a 90-deg junction turn, and the GNSS velocity has to find the heading
+again after each (the RTK car of issue 44: heading sigma 0.6-1.1 deg at the end, held
+up by the turns, not by the data). Here the three scale factors are random-constant
+states instead, appended to the 15- or 18-state model (seed 001 eq. 2, seed 003 eq. 28)
+when a scale factor is first modelled::
+
+    x = [... seed model ... | ds_x ds_y ds_z]
+    phi' = ... - C_b_n (eps + diag(w_b) ds),    ds' = 0
+
+``w_b`` the body rate over the filter interval (the mechanized increments summed, over
+its length), ``C_b_n`` its mean attitude: the same place in the model as the gyro
+drift, scaled by the rate, so a turn with GNSS velocity makes ``ds_z`` observable
+through the heading it leaves, and the heading no longer pays the whole error again at
+each turn. The compensation divides each increment (after the drift) by ``1 + s``.
+The unscented filter takes the term into its nonlinear drift
+(:func:`~sins_align_ros.models.loosely_coupled.derivative18`, ``w_b``).
+
+The prior 1-sigma is the told (or self-check-raised) scale factor times
+:data:`SCALE_STATE_FACTOR`; a later raise (the motion check seeing turns) widens the
+states' variance to it. Axis misalignment stays process noise (:mod:`.rotation_error`):
+six more states that a car turning about one axis cannot observe.
+
+The states replace the noise only once the heading is known to
+:data:`HEADING_MAX_DEG` (1-sigma) and the filter measures GNSS velocity: a turn observes
+the scale factor through the heading error it leaves (2 % of 90 deg: 1.8 deg), which a
+heading known to tens of degrees cannot show, and which positions alone (a consumer
+receiver's, correlated over tens of seconds) show too weakly to tell it from their own
+errors. Until then the noise carries the scale factors. Measured with raw AHRS triads and
+node defaults: robot_skid with a position-only receiver (heading declared unknown all
+run, 4 seeds), states from the first turn: the UKF had 3 runs silent-wrong in tilt
+instead of 1; the car with a position-only receiver (6 seeds), states once the heading
+was known: 2 runs silent-wrong in heading instead of 1 (2-3 deg off under 0.6 deg).
+
+Not in the seeds (their IMUs are calibrated).
+"""
+import math
+
+import numpy as np
+
+from .rotation_error import COHERENCE_FACTOR
+
+#: prior 1-sigma of the scale-factor states per told 1-sigma
+SCALE_STATE_FACTOR = 1.0
+#: heading 1-sigma (deg) below which the scale factors become states (module docstring)
+HEADING_MAX_DEG = 2.0
+HEADING_MAX_VAR = math.radians(HEADING_MAX_DEG) ** 2
+
+
+class GyroScaleStates:
+    """Mixin of :class:`~.navigation.IntegratedNavigation`: the scale-factor states.
+
+    Uses the engine's ``kf``, ``n``, ``Qc``, ``_Qc0``, ``_held`` and the interval's body
+    rotation ``_rot`` (:class:`~.rotation_error.RotationError`).
+    """
+
+    #: slice of the scale-factor states in the state vector; None: not modelled
+    i_sf = None
+    #: the scale factors compensated (3,), and the prior 1-sigma the states were given
+    sf = np.zeros(3)
+    sf_sigma = 0.0
+    #: the scale factor (1-sigma) modelled, as states or still as noise
+    sf_wanted = 0.0
+    #: the last GNSS epoch measured velocity (set by the engine's measurement)
+    velocity_measured = False
+
+    def _take_scale_states(self, scale):
+        """Model gyro scale factors of 1-sigma ``scale`` (-) as states: append or widen them.
+
+        Returns False (the noise keeps them) while the heading is not known to
+        :data:`HEADING_MAX_DEG` and the states are not there yet.
+        """
+        self.sf_wanted = max(self.sf_wanted, float(scale))
+        sigma = SCALE_STATE_FACTOR * self.sf_wanted
+        if self.i_sf is None:
+            if not self._scale_observable():
+                return False
+            self._append_scale_states(sigma * sigma)
+        elif sigma > self.sf_sigma:
+            k = np.arange(self.n)[self.i_sf]
+            P = self.kf.P.copy()
+            P[k, k] += sigma * sigma - self.sf_sigma ** 2
+            self.kf.P = P
+        self.sf_sigma = max(self.sf_sigma, sigma)
+        return True
+
+    def _scale_states_due(self):
+        """Move the scale factors from the noise into states once the heading is known.
+
+        Called at the end of each filter interval.
+        """
+        if self.i_sf is None and self.sf_wanted > 0.0 and self._scale_observable():
+            mis = 0.0 if self._rot_sigma is None else self._rot_sigma[1] / COHERENCE_FACTOR
+            self.set_rotation_error(self.sf_wanted, mis)
+
+    def _scale_observable(self):
+        """Tell whether turns show the scale factors: heading known, GNSS velocity measured."""
+        return self.velocity_measured and self.kf.P[2, 2] <= HEADING_MAX_VAR
+
+    def _counts_rotation(self):
+        return self.i_sf is not None
+
+    def _append_scale_states(self, var):
+        """Grow the state by three random constants of variance ``var`` (zero mean)."""
+        n0, kf = self.n, self.kf
+        n = n0 + 3
+        P, Q = np.zeros((n, n)), np.zeros((n, n))
+        P[:n0, :n0], Q[:n0, :n0] = kf.P, kf.Q
+        P[n0:, n0:] = np.eye(3) * var
+        kf.x, kf.P, kf.Q = np.zeros(n), P, Q
+        self.Qc, self._Qc0 = np.r_[self.Qc, np.zeros(3)], np.r_[self._Qc0, np.zeros(3)]
+        self._held = np.r_[self._held, np.ones(3, dtype=bool)]
+        self.n, self.i_sf, self.sf = n, slice(n0, n), np.zeros(3)
+        self._F = self._Phi = None          # the last interval's model had n0 states
+
+    def _interval_rate(self, T):
+        """Mean body rate (3,) over the interval of ``T`` s (rad/s)."""
+        return self._rot / T
+
+    def _scale_columns(self, F, C, w_b):
+        """Put ``-C diag(w_b)`` into the attitude rows of the scale-factor columns of ``F``."""
+        F[0:3, self.i_sf] = -C * w_b
+
+    def _compensate_scale(self, dtheta):
+        """Divide increments ``dtheta`` ((3,) or (N, 3)) by ``1 + s`` of the estimate."""
+        if self.i_sf is None:
+            return dtheta
+        return dtheta / (1.0 + self.sf)
+
+    def _feed_back_scale(self, x):
+        """Move the scale-factor estimate of state ``x`` into the compensation."""
+        if self.i_sf is not None:
+            self.sf = self.sf + x[self.i_sf]
+
+    def scale_status(self):
+        """Diagnostics figures of the states (empty when not modelled)."""
+        if self.i_sf is None:
+            return {}
+        sd = np.sqrt(np.diag(self.kf.P)[self.i_sf])
+        return {'gyro_scale_factor_ppm': [float(v) for v in self.sf * 1e6],
+                'gyro_scale_factor_sigma_ppm': [float(v) for v in sd * 1e6]}
