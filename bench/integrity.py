@@ -233,6 +233,12 @@ def ratio(x):
     return '-' if not np.isfinite(x) else f'{x:.1f}'
 
 
+def heading_sigma(c):
+    """Mean published heading 1-sigma at the end (deg) and the runs ending with it unknown."""
+    sig = '-' if not np.isfinite(c.sigma[2]) else f'{np.degrees(c.sigma[2]):.1f}'
+    return f'{sig}, {c.heading_unknown}'
+
+
 def head(args, cmd, commit):
     """Header lines of the results page."""
     dur = '; '.join(f'`{k}` = {SCENARIOS[k][0]}, {SCENARIOS[k][1] * args.duration_scale:.0f} s '
@@ -261,7 +267,9 @@ def head(args, cmd, commit):
         '(`eval.evidence.limits_of`: seed 002 eq. 15 bias and noise terms over the fine '
         'time, plus the GNSS velocity reference\'s heading noise for the aided filters; '
         '"-" where the gyro cannot find north). **sharp.**: mean published sigma at the end '
-        '/ RMS error per axis. **aligned**: share of runs ending `aligned`. **verdict**: '
+        '/ RMS error per axis. **heading σ end**: mean published heading 1-sigma at the end '
+        '(deg) over the runs that publish one, and the runs ending with the heading declared '
+        'unknown. **aligned**: share of runs ending `aligned`. **verdict**: '
         'FAIL for a silent-wrong run, under 95 % ending inside 3 sigma, or a sigma too '
         'wide: where the error is at the limit (RMS at most 1.5x the larger of the limit '
         'and the spec limit), mean sigma / max(RMS, spec limit) above 3. The spec limit '
@@ -339,8 +347,9 @@ def main(argv=None):
             runs.setdefault((f, job[0], job[1], told), []).append(r)
 
     rows = ['| filter | scenario | grade | told | runs | end in 3σ | silent | RMS E / N / U (\') '
-            '| limit E / N / U (\') | sharp. E / N / U | aligned | verdict |',
-            '|---|---|---|---|---|---|---|---|---|---|---|---|']
+            '| limit E / N / U (\') | sharp. E / N / U | heading σ end (°), unknown | aligned '
+            '| verdict |',
+            '|---|---|---|---|---|---|---|---|---|---|---|---|---|']
     failing, cpu = [], 0.0
     for f, key, grade, told, n in cells:
         rs = runs[(f, key, grade, told)]
@@ -353,7 +362,7 @@ def main(argv=None):
         inside = '-' if not np.isfinite(c.ended_inside) else f'{c.ended_inside:.0%}'
         rows.append(f'| {name} | {key} | {grade} | {told} | {c.runs} | {inside} | {c.silent} '
                     f'| {fmt3(c.rms)} | {fmt3(c.limit)} | {fmt3(c.sharpness, ratio)} '
-                    f'| {c.aligned:.0%} | {text} |')
+                    f'| {heading_sigma(c)} | {c.aligned:.0%} | {text} |')
         if not ok:
             why = f' ({"; ".join(c.silent_why)})' if c.silent_why else ''
             failing.append(f'- {name}, {key}, {grade}, told {told}: {text}{why}')
