@@ -61,6 +61,7 @@ import numpy as np
 from ..nav import earth
 from .heading import HeadingFix, wrap
 from .slow_monitor import (MAX_COURSE_SIGMA, MAX_LEG_S, MAX_YAW_RATE, MIN_EPOCHS, MIN_LEG_S,
+                           MIN_SPEED,
                            STRAIGHT, Leg)
 
 #: a linear yaw update of a course fix up to this filter heading 1-sigma, rad; beyond, taken
