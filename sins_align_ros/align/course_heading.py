@@ -169,7 +169,7 @@ class CourseHeading:
         return D, var
 
     def fix(self, t, C_b_n, D, var):
-        """The heading fix (:class:`~.heading.HeadingFix`) of a judged leg at ``t``."""
+        """Return the heading (:class:`~.heading.HeadingFix`) of a judged leg at ``t``."""
         yaw = math.atan2(C_b_n[1, 0], C_b_n[0, 0])
         return HeadingFix(t, wrap(yaw + D), var)
 
