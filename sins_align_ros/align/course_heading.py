@@ -29,13 +29,17 @@ thirds, ``sqrt(2 (1 - exp(-dt / tau))) sigma_m / |d|`` with ``dt`` their spacing
 the defaults 0: ``sigma_c`` already takes the whole configured position sigma without
 averaging credit, the bound for any non-negative correlation of the errors).
 
-**Only while the filter's heading is worse than the course** (the bootstrap): the fix is
-given when the published heading variance exceeds ``sigma^2`` (an unknown heading always
-does). The Gauss-Markov position error is common to the course and the filter's own
-position updates; its share in the filter's heading is small while the filter knows less
-than one leg (on a straight leg the positions do not reach the heading at all), which is
-when the course is used; once the filter knows the heading better than a leg, the course
-is left to the slow-error monitor to judge, not fed back as information it already has.
+**Only as a bootstrap.** The aid starts on a heading the filter has not found: published
+as unknown or with a 1-sigma beyond :data:`LINEAR_MAX` (a heading the filter found itself
+is the slow-error monitor's to judge: a marine-grade ship in a 1 m/s current, its heading
+known to 7.6 deg from the coarse stage, had its north tilt pulled outside 3 sigma on 7-12
+% of its rows by one crabbed leg). Once the aid has set the heading, a leg is given while
+the published heading 1-sigma is above half the leg's (:data:`BETTER`). The Gauss-Markov
+position error is common to the course and the filter's own position updates; its share
+in the filter's heading is small while the filter knows less than one leg (on a straight
+leg the positions do not reach the heading at all), which is when the course is used;
+once the filter knows the heading better than a leg, the course is left to the slow-error
+monitor to judge, not fed back as information it already has.
 A filter whose heading is beyond its linear range (``kf``'s held heading, a cubature
 prior) takes it directly (:func:`~.heading.take_heading`); otherwise it is a linear yaw
 update up to :data:`LINEAR_MAX` (a rotation about up is exactly linear in the up
@@ -65,6 +69,7 @@ from .slow_monitor import (MAX_COURSE_SIGMA, MAX_LEG_S, MAX_YAW_RATE, MIN_EPOCHS
                            STRAIGHT, Leg)
 
 #: a linear yaw update of a course fix up to this filter heading 1-sigma, rad; beyond, taken
+#: directly; the aid starts only on a published heading beyond it (or unknown)
 LINEAR_MAX = math.radians(25.0)
 #: the aid feeds a leg while the published heading 1-sigma is above the leg's over this
 BETTER = 2.0

@@ -120,6 +120,12 @@ class EpochUpdates:
         D, var = leg
         self._att_cov = None
         var_h = float(self.attitude_cov()[2, 2])
+        # a bootstrap: a heading the filter found itself is the slow monitor's to judge; the
+        # aid starts only on one declared unknown or beyond the linear range, then keeps it
+        # while the published sigma is above half a leg's
+        owned = self.course.n_taken + self.course.n_used > 0
+        if not (owned or var_h > course_heading.LINEAR_MAX ** 2):
+            return None
         if not var_h > var / course_heading.BETTER ** 2:   # known better: the slow monitor
             return None
         # a capped cubature prior, or a linear filter's heading held at its range before
