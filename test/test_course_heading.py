@@ -184,3 +184,23 @@ def test_the_aid_is_off_when_told_and_for_still_base_engines():
     assert isinstance(course_heading.for_stage(Engine(), cfg), CourseHeading)
     Engine.restages = True
     assert course_heading.for_stage(Engine(), cfg) is None
+
+
+def test_a_ship_that_found_its_heading_is_not_given_a_crabbed_course():
+    """ship_underway (marine grade) carried by 1 m/s across its 2.6 m/s: a 20 deg crab.
+
+    Its heading is found by the coarse stage (published within the aid's linear range from
+    the start of fine), so the aid, a bootstrap, gives it no course at all, and the run
+    passes the silent-wrong rule (one crabbed leg had pulled its north tilt outside 3 sigma
+    on 7-12 % of the rows when the aid fed every heading worse than half a leg's).
+    """
+    sc = scenario('ship_underway', duration=400.0)
+    sc.trajectory = replace(sc.trajectory, current_mps=(0.7, -0.7))
+    data = simulate(sc, 7)
+    for fine_filter in ('kf', 'asckf'):
+        run = run_pipeline(defaults(sc, fine_filter), data)
+        aid = run.pipeline.fine.course
+        assert aid.n_taken + aid.n_used == 0 and aid.n_judged > 0
+        rows, err, sig = _rows(run, sc.imu_rate_hz)
+        silent, why = silent_wrong(err, sig)
+        assert not silent, (fine_filter, why)
