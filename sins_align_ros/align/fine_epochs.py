@@ -14,6 +14,7 @@ comes back as its reason. Uses the stage's ``engine``, ``t0``, ``install``, ``he
 """
 import numpy as np
 
+from . import course_heading
 from .gnss_gate import FilterDiverged
 
 
@@ -22,13 +23,13 @@ class EpochUpdates:
 
     def monitor_findings(self):
         """Return the new findings of the slow-error monitor and the motion check (WARNs)."""
-        return [w for mon in (self.slow, self.motion_check) if mon is not None
+        return [w for mon in (self.slow, self.motion_check, self.course) if mon is not None
                 for w in mon.take_findings()]
 
     def monitor_status(self):
         """Diagnostics figures of the slow-error monitor and the motion check."""
         s = {}
-        for mon in (self.slow, self.motion_check):
+        for mon in (self.slow, self.motion_check, self.course):
             if mon is not None:
                 s.update(mon.status())
         return s
@@ -100,6 +101,55 @@ class EpochUpdates:
             self.slow.remedy(self.engine)
             self._att_cov = None
 
+    def _aid_course(self, t_now, fix):
+        """Give the course heading aid (:mod:`.course_heading`) an accepted epoch.
+
+        A judged leg's course goes to the engine as a heading fix while the published
+        heading is less certain than it (taken directly while the engine's heading is
+        beyond its linear range); a disagreement that turns the aid off widens the heading.
+        Returns the reason if the engine diverged.
+        """
+        if (self.course is None or self.mounting_doubt or not self.heading_known
+                or self.engine.kf.rejected):
+            return None
+        eng = self.engine
+        m = eng.mech
+        leg = self.course.add(t_now, m.C_b_n, m.v_n, fix)
+        if leg is None:
+            return None
+        D, var = leg
+        self._att_cov = None
+        var_h = float(self.attitude_cov()[2, 2])
+        # a bootstrap: a heading the filter found itself is the slow monitor's to judge; the
+        # aid starts only on one declared unknown or beyond the linear range, then keeps it
+        # while the published sigma is above half a leg's
+        owned = self.course.n_taken + self.course.n_used > 0
+        if not (owned or var_h > course_heading.LINEAR_MAX ** 2):
+            return None
+        if not var_h > var / course_heading.BETTER ** 2:   # known better: the slow monitor
+            return None
+        # a capped cubature prior, or a linear filter's heading held at its range before
+        # the aid ever set it: taken directly; held after the aid set it: a linear update,
+        # and taken if its gate rejects it (the held variance says too little)
+        held = getattr(eng, 'heading_lost', False)
+        first = self.course.n_taken + self.course.n_used == 0
+        take = getattr(eng, 'heading_prior_var', None) is not None or (held and first)
+        heading = self.course.fix(t_now, m.C_b_n, D, var)
+        try:
+            result = eng.update_heading(heading, t_now,
+                                        linear_max=0.0 if take else course_heading.LINEAR_MAX)
+            if held and result == 'rejected':
+                result = eng.update_heading(heading, t_now, linear_max=0.0)
+            elif held and result == 'used':
+                eng._heading_taken()
+        except FilterDiverged as exc:
+            return str(exc)
+        widen = self.course.result(t_now, D, var, result, var_h)
+        if widen is not None:
+            eng.widen(widen, 0.0)
+        self._att_cov = None
+        return None
+
     def _apply_gnss(self, t_now, gnss, dtheta, dt):
         """Give the engine every queued epoch up to ``t_now``; the reason if it diverged.
 
@@ -142,4 +192,7 @@ class EpochUpdates:
                 if self.consistency.relax:
                     eng.relax()
                 self._watch_slow(t_now, fix)
+                reason = self._aid_course(t_now, fix)
+                if reason is not None:
+                    return reason
             self._epoch_done(t_now)

@@ -62,7 +62,7 @@ from .expectation import SigmaHistory
 from .fine_epochs import EpochUpdates
 from .gnss_gate import FilterDiverged
 from .imu_input import intervals
-from . import motion_check, slow_monitor
+from . import course_heading, motion_check, slow_monitor
 from .output import Rows, one_row
 from .sideslip import SideslipCheck
 from .still_watch import StillWatch
@@ -142,6 +142,9 @@ class FineStage(EpochUpdates):
         #: against the IMU in motion (:mod:`.motion_check`), aided engines only, or None
         self.slow = slow_monitor.for_stage(engine, cfg)
         self.motion_check = motion_check.for_stage(engine, cfg, noise)
+        #: the straight legs' GNSS course as a heading fix while the heading is unknown
+        #: (:mod:`.course_heading`), aided engines only, or None
+        self.course = course_heading.for_stage(engine, cfg)
 
     @property
     def moving(self):

@@ -21,14 +21,16 @@ class ExternalHeading:
     #: the external heading's innovation gate, made at its first epoch
     heading_gate = None
 
-    def update_heading(self, fix, t_now, w_up=0.0):
+    def update_heading(self, fix, t_now, w_up=0.0, linear_max=LINEAR_MAX):
         """Filter epoch for an external heading ``fix`` (:class:`~.heading.HeadingFix`).
 
         Predicts over the interval so far, then updates the misalignment with the yaw
         (:func:`~.heading.yaw_update`, carried from the fix's stamp to ``t_now`` with the up
         rate ``w_up``, rad/s) and feeds the estimate back as a GNSS epoch without a
         position does; above :data:`~.heading.LINEAR_MAX` the heading is taken directly.
-        Outliers are gated with the GNSS gate's probability (a gate of its own). Returns
+        ``linear_max`` (rad) replaces that bound (0: always taken; the GNSS course of
+        :mod:`.course_heading`). Outliers are gated with the GNSS gate's probability (a gate
+        of its own). Returns
         ``'used'``, ``'taken'`` or ``'rejected'``; raises
         :class:`~.gnss_gate.FilterDiverged`.
         """
@@ -41,7 +43,7 @@ class ExternalHeading:
         yaw = fix.yaw + w_up * (t_now - fix.t)
         k_up = np.arange(len(kf.x))[self.i_phi][2]
         P = kf.P
-        if P[k_up, k_up] > LINEAR_MAX ** 2:
+        if P[k_up, k_up] > linear_max ** 2:
             self.mech.C_b_n, kf.P = take_heading(self.mech.C_b_n, P, k_up, yaw, fix.var)
             x = kf.x.copy()
             x[k_up] = 0.0

@@ -198,6 +198,13 @@ ALIGNMENT_PARAMS = (
     Param('slow_monitor_sideslip_deg', 0.5, 'slow-error monitor: the sideslip (crab) 1-sigma '
           'a straight leg may show, deg: a car 0.5, a skid-steer robot a few, a boat in a '
           'current 20-30', 0.0, 90.0),
+    Param('course_heading', True, 'GNSS-aided filters: while the published heading is less '
+          'certain than the GNSS course of a straight leg (5-30 s), that course is given to '
+          'the filter as a heading fix (the vehicle moves along its forward axis); off for a '
+          'vehicle that crabs or moves sideways (docs/alignment_node.md)'),
+    Param('course_heading_sideslip_deg', 5.0, 'course heading aid: the sideslip (crab) '
+          '1-sigma of a straight leg added to the course\'s own, deg: a car 1, a skid-steer '
+          'robot a few; legs whose courses disagree beyond it turn the aid off', 0.0, 90.0),
     Param('gnss_pos_sigma_m', 1.0, 'GNSS horizontal position noise, 1 sigma, m (moving-base '
           'filters; used when a fix reports no covariance or reported covariance is off)',
           0.001, 1000.0),

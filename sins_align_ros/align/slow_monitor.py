@@ -108,29 +108,38 @@ class Leg:
         self.course, self.var_c = [], []      # per epoch with a GNSS velocity
         self.pos = []                         # (lat, lon, h)
         self.pos_var = []
+        #: displacement between the first and last thirds' means (positions only), m
+        self.length = math.nan
 
     @property
     def duration(self):
         return self.t[-1] - self.t0 if self.t else 0.0
 
-    def difference(self):
-        """Return ``(D, sigma_c)`` of the leg, rad (module docstring), or None if too uncertain."""
+    def difference(self, fold_reverse=True):
+        """Return ``(D, sigma_c)`` of the leg, rad (module docstring), or None if too uncertain.
+
+        ``fold_reverse`` False: the leg is taken as driven forward, ``D`` is not folded by
+        180 deg (:mod:`.course_heading`: the course as a heading, the heading unknown).
+        Sets :attr:`length` (m) of a positions-only leg.
+        """
         n = len(self.t)
+        f = fold if fold_reverse else (lambda a: a)
         if len(self.course) == n:              # a velocity at every epoch
-            d = [fold(wrap(c - y)) for c, y in zip(self.course, self.yaw)]
+            d = np.array([f(wrap(c - y)) for c, y in zip(self.course, self.yaw)])
             sig_c = math.sqrt(float(np.mean(self.var_c)) / max(1.0, min(n, self.duration)))
-            D = float(np.mean(d))
+            D = (float(np.mean(d)) if fold_reverse
+                 else math.atan2(np.mean(np.sin(d)), np.mean(np.cos(d))))
         else:                                  # positions only: the leg's displacement
             k = max(1, n // 3)
             lat, lon, h = (np.array([p[i] for p in self.pos]) for i in range(3))
             enu = earth.local_offset_m(lat[0], lon[0], h[0], lat, lon, h)
             delta = enu[-k:, :2].mean(axis=0) - enu[:k, :2].mean(axis=0)
-            length = float(np.hypot(*delta))
+            length = self.length = float(np.hypot(*delta))
             if not length > 0.0:
                 return None
             sig_c = math.sqrt(2.0 * float(np.mean(self.pos_var))) / length
             yaw = math.atan2(np.mean(np.sin(self.yaw)), np.mean(np.cos(self.yaw)))
-            D = fold(wrap(math.atan2(delta[1], delta[0]) - yaw))
+            D = f(wrap(math.atan2(delta[1], delta[0]) - yaw))
         if not sig_c <= MAX_COURSE_SIGMA:
             return None
         return D, sig_c

@@ -208,6 +208,12 @@ class Trajectory:
     sway : Sway or None
     coordinated_bank : bool
         Bank into turns as an aircraft does (roll = atan(V chi'/g0)).
+    current_mps : (2,)
+        A current (or wind) carrying the vehicle, east and north, m/s: the velocity is
+        the base motion's (through the water, along the heading) plus this, so the
+        course over ground is off the heading by a crab angle that changes with the
+        heading (a boat in a current; issue 44's course heading aid must not take it
+        for a heading).
     name : str
     """
 
@@ -221,6 +227,7 @@ class Trajectory:
     segments: list = field(default_factory=list)
     sway: Sway = None
     coordinated_bank: bool = False
+    current_mps: tuple = (0.0, 0.0)
     name: str = ''
 
     def __setattr__(self, name, value):
@@ -230,6 +237,8 @@ class Trajectory:
     def __getstate__(self):
         state = dict(self.__dict__)
         state.pop('_derived', None)              # pickles (cache keys) as the fields alone
+        if not any(state.get('current_mps', ())):
+            state.pop('current_mps', None)       # no current: the keys of before it existed
         return state
 
     @property
@@ -254,7 +263,8 @@ class Trajectory:
         """True if the trajectory ever translates (not only sways in place)."""
         sw = self.sway
         osc = sw is not None and (sw.surge_amp or sw.sway_amp or sw.heave_amp)
-        return bool(self.speed or osc or any(s.accel for s in self.segments))
+        return bool(self.speed or osc or any(s.accel for s in self.segments)
+                    or any(self.current_mps))
 
     def _base(self, t):
         """Speed, course, flight-path angle and their first/second derivatives at ``t`` (N,).
@@ -307,6 +317,7 @@ class Trajectory:
         V, chi, gam = self._base_at(t)
         cg = math.cos(gam)
         v_n = np.array([V * (cg * math.sin(chi)), V * (cg * math.cos(chi)), V * math.sin(gam)])
+        v_n[:2] += self.current_mps
         for amp, w, axis in self._tables.oscillations:
             v_n += (amp * w * math.cos(w * t)) * axis
         return v_n
@@ -321,6 +332,7 @@ class Trajectory:
                        -sg * dgam * cc - cg * sc * dchi,
                        cg * dgam], axis=-1)
         v_n = V[:, None] * u
+        v_n[:, :2] += np.asarray(self.current_mps, dtype=float)
         a_n = dV[:, None] * u + V[:, None] * du
 
         roll = np.full_like(t, self.roll_deg * DEG)
