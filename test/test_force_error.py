@@ -5,7 +5,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from sins_align_ros.align import factory, rotation_error, self_check
+from sins_align_ros.align import rotation_error, self_check
 from sins_align_ros.align.force_error import FORCE_MEMORY_S, ForceError
 from sins_align_ros.align.rotation_error import COHERENCE_FACTOR, coherent_variance
 from sins_align_ros.eval.integrity import run_integrity
@@ -107,7 +107,7 @@ def _before(monkeypatch):
                         tuple((e, (0.0, 0.0)) for e, _ in self_check.ACCEL_SCALE_BY_GYRO_NOISE))
     monkeypatch.setattr(rotation_error, 'COHERENCE_FACTOR', 1.0)
     # nor was there the gyro misalignment's tilt floor (rotation_error.unseparable_tilt_var)
-    monkeypatch.setattr(factory, 'unseparable_tilt_var', lambda m: 0.0)
+    monkeypatch.setattr(rotation_error, 'unseparable_tilt_var', lambda m: 0.0)
 
 
 @pytest.mark.slow

@@ -120,9 +120,15 @@ def test_the_yaw_rate_leak_into_the_horizontal_gyros_looks_like_an_accelerometer
 
 
 def test_the_published_tilt_carries_the_gyro_misalignment_of_the_model():
-    """The floor of the aided engines (``factory.make_engine``) holds ``m^2`` per tilt axis."""
+    """The aided engines' tilt floor holds ``m^2`` per tilt axis, none on the heading, and
+    follows the misalignment as it is raised (the motion check)."""
     assert unseparable_tilt_var(5000e-6) == pytest.approx(25e-6, rel=1e-12)
-    assert unseparable_tilt_var(0.0) == 0.0
+    eng = _Engine()
+    np.testing.assert_array_equal(eng.tilt_floor(), 0.0)
+    eng.set_rotation_error(0.02, 0.005)
+    np.testing.assert_allclose(eng.tilt_floor(), [25e-6, 25e-6, 0.0], rtol=1e-12)
+    eng.set_rotation_error(0.02, 0.008)
+    np.testing.assert_allclose(eng.tilt_floor(), [64e-6, 64e-6, 0.0], rtol=1e-12)
 
 
 @pytest.mark.slow

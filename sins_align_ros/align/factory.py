@@ -15,7 +15,6 @@ from .gnss_gate import GnssGate
 from .moving import MovingBaseAlignment, model_noise as moving_model_noise
 from .navigation import IntegratedNavigation, gyro_tau, model_noise as nav_model_noise
 from .robust import RobustAlignment, model_noise as robust_model_noise
-from .rotation_error import unseparable_tilt_var
 from .stationary import StationaryEngine
 from ..models.stationary import NoiseSpec, StationaryModel
 from ..nav import earth
@@ -128,11 +127,10 @@ def make_engine(cfg, noise, start, has_velocity, heading_known=True):
                         cfg['accel_misalignment_ppm'] * 1e-6)
     if not heading_known:
         eng.hold_level_accel_bias()
-    # a model without accelerometer bias leaves a tilt of bias / g, added at the output;
-    # every aided model the tilt of the yaw rate's leak into the horizontal gyros, which no
-    # turn tells from an accelerometer bias (rotation_error.unseparable_tilt_var)
+    # a model without accelerometer bias leaves a tilt of bias / g, added at the output
+    # (and every aided model the tilt of the yaw rate's leak into the horizontal gyros,
+    # which no turn tells from an accelerometer bias: the engine's tilt_floor, FineStage)
     tilt = 0.0 if eng.has_accel_bias else (noise.accel_bias / earth.gravity(lat, h)) ** 2
-    tilt += unseparable_tilt_var(cfg['gyro_misalignment_ppm'] * 1e-6)
     return eng, np.array([tilt, tilt, 0.0]), warnings
 
 

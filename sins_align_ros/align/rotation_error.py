@@ -49,7 +49,8 @@ run shows all of it: the same column alone in an IMU of biases and white noise o
 1009's ``m``, the kf told 10 deg/h instability, 5000 ppm accelerometer scale factor and
 misalignment) left (6', 11') of the (21', 20'), and (3', 5') told no accelerometer model;
 why the filter finds less of ``b - g m`` there is not known. Its variance ``m^2``, the whole
-of it, on the safe side, is added to each published tilt's (``factory.make_engine``'s floor).
+of it, on the safe side, is added to each published tilt's (:meth:`RotationError.tilt_floor`,
+which ``FineStage.floor`` adds at output).
 """
 import math
 
@@ -119,12 +120,16 @@ class RotationError:
 
     #: (scale factor, misalignment) 1-sigma, rad/rad; None: not modelled
     _rot_sigma = None
+    #: the told (self-checked) misalignment 1-sigma, rad/rad (:meth:`tilt_floor`)
+    _rot_misalignment = 0.0
 
     def set_rotation_error(self, scale, misalignment):
         """Model gyro scale factors ``scale`` and misalignment ``misalignment`` (1-sigma, -).
 
-        Kept times :data:`COHERENCE_FACTOR` (module docstring).
+        Kept times :data:`COHERENCE_FACTOR` (module docstring); the misalignment as told
+        also sets :meth:`tilt_floor`.
         """
+        self._rot_misalignment = max(float(misalignment), 0.0)
         if scale <= 0.0 and misalignment <= 0.0:
             self._rot_sigma = None
             return
@@ -132,6 +137,14 @@ class RotationError:
                            COHERENCE_FACTOR * float(misalignment))
         self._rot = np.zeros(3)
         self._rot_A = np.zeros(3)
+
+    def tilt_floor(self):
+        """Variances (3,) rad^2 about E, N, U the model cannot see: :func:`unseparable_tilt_var`.
+
+        Follows the misalignment as the motion check raises it (:mod:`.motion_check`).
+        """
+        v = unseparable_tilt_var(self._rot_misalignment)
+        return np.array([v, v, 0.0])
 
     def _add_rotation(self, dtheta):
         """Count mechanized increments ``dtheta`` ((3,) or (N, 3), rad) into the interval."""
