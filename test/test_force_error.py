@@ -97,7 +97,8 @@ def test_force_variance_closed_form():
 
 
 def _before(monkeypatch):
-    """The self-check and the rotation model as they were before the accelerometer model."""
+    """The self-check and the rotation model as they were before the accelerometer model
+    (and before the gyro misalignment's tilt floor)."""
     monkeypatch.setattr(self_check, 'ACCEL_BIAS_BY_GYRO_NOISE',
                         ((0.003, 100.0), (0.15, 500.0), (0.6, 2000.0), (math.inf, 5000.0)))
     monkeypatch.setattr(self_check, 'GYRO_BIAS_BY_GYRO_NOISE_MOVING',
@@ -105,6 +106,8 @@ def _before(monkeypatch):
     monkeypatch.setattr(self_check, 'ACCEL_SCALE_BY_GYRO_NOISE',
                         tuple((e, (0.0, 0.0)) for e, _ in self_check.ACCEL_SCALE_BY_GYRO_NOISE))
     monkeypatch.setattr(rotation_error, 'COHERENCE_FACTOR', 1.0)
+    # nor was there the gyro misalignment's tilt floor (rotation_error.unseparable_tilt_var)
+    monkeypatch.setattr(rotation_error, 'unseparable_tilt_var', lambda m: 0.0)
 
 
 @pytest.mark.slow

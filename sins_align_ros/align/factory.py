@@ -128,6 +128,8 @@ def make_engine(cfg, noise, start, has_velocity, heading_known=True):
     if not heading_known:
         eng.hold_level_accel_bias()
     # a model without accelerometer bias leaves a tilt of bias / g, added at the output
+    # (and every aided model the tilt of the yaw rate's leak into the horizontal gyros,
+    # which no turn tells from an accelerometer bias: the engine's tilt_floor, FineStage)
     tilt = 0.0 if eng.has_accel_bias else (noise.accel_bias / earth.gravity(lat, h)) ** 2
     return eng, np.array([tilt, tilt, 0.0]), warnings
 

@@ -110,8 +110,7 @@ class FineStage(EpochUpdates):
         #: the stage has settled (latched; the module docstring): from then on the
         #: bounds and the consistency monitor decide
         self.converged = False
-        self.floor = np.asarray(floor, dtype=float)
-        self._floor_cov = np.diag(self.floor)
+        self._floor = np.asarray(floor, dtype=float)
         self.clock = clock
         self.phase = FINE
         self.stage = 1
@@ -152,6 +151,17 @@ class FineStage(EpochUpdates):
         return '' if self.still is None else self.still.moving
 
     @property
+    def floor(self):
+        """Variances (3,) rad^2 added to the engine's attitude covariance at output.
+
+        The engine's own (``make_engine``'s) plus, for the aided engines, the tilt the gyro
+        misalignment leaves (:meth:`~.rotation_error.RotationError.tilt_floor`), as the
+        model has it now.
+        """
+        more = getattr(self.engine, 'tilt_floor', None)
+        return self._floor if more is None else self._floor + more()
+
+    @property
     def mech(self):
         return self.engine.mech
 
@@ -165,7 +175,7 @@ class FineStage(EpochUpdates):
     def attitude_cov(self):
         """Misalignment covariance about ENU (3, 3) with the floor; cached between epochs."""
         if self._att_cov is None:
-            P = self.engine.attitude_cov() + self._floor_cov
+            P = self.engine.attitude_cov() + np.diag(self.floor)
             if self.mounting_doubt:       # the IMU's attitude, not the vehicle's
                 P = np.diag(np.full(3, ANGLE_UNKNOWN_VAR))
             elif not self.heading_known:

@@ -308,19 +308,6 @@ class MovingBaseAlignment(GnssAidedEngine):
         kf.transform(T)
         kf.x[:7] = 0.0
 
-    def attitude_cov(self):
-        """Misalignment covariance about ENU (3, 3), rad^2: the filter's and the unobservable tilt.
-
-        The filter's (with the coarse heading prior, :meth:`~.aided.GnssAidedEngine.attitude_cov`)
-        plus the body-fixed tilt of the z gyro's misalignment, which the accelerometer bias
-        state takes and no aiding separates
-        (:meth:`~.rotation_error.RotationError.unobservable_tilt_cov`; not in seed 000,
-        whose gyros are calibrated). Without it, car:rtk and car:consumer with raw MEMS
-        AHRS triads ended 28-34 arcmin off under a 3.5-4.6 arcmin tilt sigma, 7-8 of 10
-        runs silent wrong (bench/results/integrity_ground_subset.md).
-        """
-        return super().attitude_cov() + self.unobservable_tilt_cov()
-
     def status(self):
         """Filter internals for diagnostics; with 13 states the accelerometer bias estimate."""
         s = super().status()

@@ -149,7 +149,9 @@ ALIGNMENT_PARAMS = (
           'filters; the self-check raises it to the class its gyro noise shows)', 0.0, 1e5),
     Param('gyro_misalignment_ppm', 0.0, 'gyro axis misalignment (non-orthogonality), 1 '
           'sigma per off-diagonal entry, ppm (filter model, as gyro_scale_factor_ppm: a turn '
-          'about one axis leaks into the other two)', 0.0, 1e5),
+          'about one axis leaks into the other two; its square is also added to the '
+          'published tilt variance: the yaw rate leaking into the horizontal gyros makes a '
+          'tilt no turn tells from an accelerometer bias)', 0.0, 1e5),
     Param('accel_bias_ug', 100.0, 'accelerometer constant bias, 1 sigma, micro-g', 0.0, 1e5),
     Param('accel_scale_factor_ppm', 0.0, 'accelerometer scale-factor error, 1 sigma per '
           'axis, ppm (filter model: a velocity error that grows with the velocity the vehicle '
