@@ -64,7 +64,8 @@ FOG = {'gyro_bias_dph': 200.0, 'gyro_arw_dpsh': 1.0, 'accel_bias_ug': 2000.0,
 MEMS_CAR_PHASES = ('coarse', 'fine')
 #: MVBAKF's car publishes its heading as unknown until the GNSS course of its straight legs
 #: (align/course_heading.py) gives it one at 95 s (4.5 deg); the turn at 100 s brings it to
-#: 1.9 deg, ``aligned`` at 105 s (0.8 deg off), fine again as the scale-factor model opens it
+#: 1.9 deg, ``aligned`` at 105 s (0.8 deg off); with the gyro scale-factor states
+#: (align/gyro_scale.py) it ends ``aligned``, 1.9 deg off under 1.85 deg
 MVBAKF_CAR_PHASES = ('coarse', 'fine', 'aligned')
 #: short stages so that a 100-160 s still run reaches ``aligned``; a tactical gyro finds
 #: north to about 5 deg at rest, so the heading bound for ``aligned`` is set to 10 deg
