@@ -192,13 +192,15 @@ def test_a_ship_that_found_its_heading_is_not_given_a_crabbed_course():
     Its heading is found by the coarse stage (published within the aid's linear range from
     the start of fine), so the aid, a bootstrap, gives it no course at all, and the run
     passes the silent-wrong rule (one crabbed leg had pulled its north tilt outside 3 sigma
-    on 7-12 % of the rows when the aid fed every heading worse than half a leg's).
+    on 7-12 % of the rows when the aid fed every heading worse than half a leg's). At its
+    2.6 m/s the legs are above ``track_min_speed_mps`` and not the aid's at all; the track
+    speed is raised here so that the aid judges them and the bootstrap rule is what holds.
     """
     sc = scenario('ship_underway', duration=400.0)
     sc.trajectory = replace(sc.trajectory, current_mps=(0.7, -0.7))
     data = simulate(sc, 7)
     for fine_filter in ('kf', 'asckf'):
-        run = run_pipeline(defaults(sc, fine_filter), data)
+        run = run_pipeline({**defaults(sc, fine_filter), 'track_min_speed_mps': 1000.0}, data)
         aid = run.pipeline.fine.course
         assert aid.n_taken + aid.n_used == 0 and aid.n_judged > 0
         rows, err, sig = _rows(run, sc.imu_rate_hz)

@@ -235,11 +235,14 @@ def test_a_position_only_robots_tilt_claim_is_honest_with_the_correlated_error_t
     accelerations look far better than a 1.5 m error correlated over 60 s lets them
     be: more than 5 % of the 1-s rows have a tilt outside 3 sigma. Told the error, each
     fix's noise gets its white equivalent (about 26 m at 0.4 s) and every row is
-    inside, the tilt sigma about twice as wide.
+    inside, the tilt sigma about twice as wide. The course heading aid
+    (align/course_heading.py) is off in both arms: it is not what is tested, and with it the
+    white arm is not silent on this seed (0 % of rows outside: the heading it finds keeps the
+    tilt honest here, which is not a property of the position model).
     """
     sc, data = robot
-    before = alignment_params(sc, 'kf', gnss_position_markov_sigma_m=0.0)
-    after = alignment_params(sc, 'kf')
+    before = alignment_params(sc, 'kf', gnss_position_markov_sigma_m=0.0, course_heading=False)
+    after = alignment_params(sc, 'kf', course_heading=False)
     assert after['gnss_position_markov_sigma_m'] == 1.5
     r0 = run_integrity(run_pipeline(before, data), sc.imu_rate_hz)
     r1 = run_integrity(run_pipeline(after, data), sc.imu_rate_hz)

@@ -15,7 +15,6 @@ from sins_align_ros.nav.frames import attitude_error, euler_to_dcm, rotvec_to_dc
 from sins_align_ros.sim.presets import alignment_params, scenario
 from sins_align_ros.sim.scenario import ScenarioStream
 from sins_align_ros.units import UG
-from tolerance import roundoff
 
 
 class _Engine(RotationError):

@@ -45,6 +45,15 @@ prior) takes it directly (:func:`~.heading.take_heading`); otherwise it is a lin
 update up to :data:`LINEAR_MAX` (a rotation about up is exactly linear in the up
 misalignment) through the heading innovation gate.
 
+**Not where the GNSS track speaks.** A leg whose receiver reports velocity at every epoch
+with a median speed of at least ``track_min_speed_mps`` is not the aid's: there the
+coarse stage takes the track heading, and the under-way mounting check
+(:mod:`.sideslip`) needs the filter's heading to come from the IMU, not from the course
+(a car with its IMU turned 90 deg and untold, seed 003's at 5-10 m/s: with the aid
+feeding, the course held the heading where the vehicle goes, the mounting was never
+named and the tilt ended 2.2 sigma off; without it the check names it). The aid fills
+what the track leaves: positions only, and speeds below the track's.
+
 **Safety.** A boat crabs 20-30 deg in a current, a holonomic robot moves sideways. A crab
 fixed to the earth (a current) changes with the course: legs in different directions
 give courses that disagree with the gyro-carried heading far beyond their sigmas, so the
@@ -89,8 +98,10 @@ class CourseHeading:
     """
 
     def __init__(self, sideslip_deg=5.0, sigmas=3.0, pos_sigma=1.0, vel_sigma=0.1,
-                 markov_sigma=0.0, markov_tau=60.0):
+                 markov_sigma=0.0, markov_tau=60.0, track_speed=math.inf):
         self.var_s = math.radians(sideslip_deg) ** 2
+        self.track_speed = float(track_speed)
+        self._speeds = []             # the current leg's GNSS speeds (m/s), with velocity
         self.sigmas = float(sigmas)
         self.pos_var = float(pos_sigma) ** 2
         self.vel_var = float(vel_sigma) ** 2
@@ -140,6 +151,7 @@ class CourseHeading:
     def _join(self, t, yaw, fix):
         if self.leg is None:
             self.leg = Leg(t, yaw)
+            self._speeds = []
         leg = self.leg
         leg.t.append(t)
         leg.yaw.append(yaw)
@@ -150,6 +162,7 @@ class CourseHeading:
         if fix.v_n is not None:
             v = np.asarray(fix.v_n, dtype=float)
             sp = math.hypot(v[0], v[1])
+            self._speeds.append(sp)
             if sp >= MIN_SPEED:
                 vv = self.vel_var if fix.vel_var is None else max(self.vel_var,
                                                                   float(np.mean(fix.vel_var)))
@@ -160,6 +173,8 @@ class CourseHeading:
         """``(D, var)`` of a finished leg (module docstring), or None when too short or vague."""
         if len(leg.t) < MIN_EPOCHS or leg.duration < MIN_LEG_S:
             return None
+        if len(self._speeds) == len(leg.t) and np.median(self._speeds) >= self.track_speed:
+            return None           # the GNSS track's and the mounting check's (docstring)
         if len(leg.course) == len(leg.t):
             res = leg.difference(fold_reverse=False)
         else:
@@ -276,4 +291,5 @@ def for_stage(engine, cfg):
         return None
     return CourseHeading(cfg['course_heading_sideslip_deg'], cfg['slow_monitor_sigmas'],
                          cfg['gnss_pos_sigma_m'], cfg['gnss_vel_sigma_mps'],
-                         cfg['gnss_position_markov_sigma_m'], cfg['gnss_position_markov_tau_s'])
+                         cfg['gnss_position_markov_sigma_m'], cfg['gnss_position_markov_tau_s'],
+                         cfg['track_min_speed_mps'])

@@ -5,6 +5,8 @@ A mixin of :class:`~.aided.GnssAidedEngine`: a GNSS compass's or gyrocompass's y
 heading is still beyond the small-angle model, is taken directly
 (:mod:`.heading` has the measurement itself).
 """
+import math
+
 import numpy as np
 
 from .gnss_gate import GnssGate
@@ -20,6 +22,9 @@ class ExternalHeading:
 
     #: the external heading's innovation gate, made at its first epoch
     heading_gate = None
+    #: the smallest variance (rad^2) of a heading fix taken or used so far (a heading
+    #: floor derived for a heading found from the accelerations yields to it)
+    min_heading_fix_var = math.inf
 
     def update_heading(self, fix, t_now, w_up=0.0, linear_max=LINEAR_MAX):
         """Filter epoch for an external heading ``fix`` (:class:`~.heading.HeadingFix`).
@@ -49,6 +54,7 @@ class ExternalHeading:
             x[k_up] = 0.0
             kf.x = x
             self.heading_prior_var = None
+            self.min_heading_fix_var = min(self.min_heading_fix_var, fix.var)
             self._heading_taken()
             return 'taken'
         upd = gated_yaw_update(self.heading_gate, kf, kf.x, kf.P, self.i_phi, self.mech.C_b_n,
@@ -56,6 +62,7 @@ class ExternalHeading:
         if upd is None:
             return 'rejected'
         kf.x, kf.P = upd
+        self.min_heading_fix_var = min(self.min_heading_fix_var, fix.var)
         self._feedback(None)
         return 'used'
 

@@ -425,12 +425,16 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
         lets the filter average down as if it were white. Measured (car:rtk, raw AHRS triads
         told right, 10 seeds, m = 0.5 %): heading sigma 14' at the end, and one run 30-50'
         off under 11-18' for 4 min. So the published heading variance is at least ``m^2``
-        (the told misalignment; row and column scaled, P stays semi-definite).
+        (the told misalignment; row and column scaled, P stays semi-definite). A heading
+        measured directly (an external heading, a GNSS compass's 0.1 deg) does not come from
+        the accelerations: once a heading fix better than the floor has been used, there is
+        none (a GNSS compass of 0.2 deg at 1 Hz, seed 003's car: 0.2 deg held at the fix's
+        own sigma otherwise, where the filter averaging its fixes reaches 0.1).
         """
         if self._force_sigma is None:
             return P
         floor = (self._force_sigma[1] / COHERENCE_FACTOR) ** 2
-        if not 0.0 < P[2, 2] < floor:
+        if not 0.0 < P[2, 2] < floor or self.min_heading_fix_var < floor:
             return P
         s = np.ones(3)
         s[2] = math.sqrt(floor / P[2, 2])

@@ -62,11 +62,6 @@ FOG = {'gyro_bias_dph': 200.0, 'gyro_arw_dpsh': 1.0, 'accel_bias_ug': 2000.0,
 #: (align/rotation_error.py COHERENCE_FACTOR) holds the heading sigma at 2.8 deg after the
 #: turn at 100 s (1.8 deg at 1x, aligned at 106 s), still shrinking at the bag's end
 MEMS_CAR_PHASES = ('coarse', 'fine')
-#: MVBAKF's car publishes its heading as unknown until the GNSS course of its straight legs
-#: (align/course_heading.py) gives it one at 95 s (4.5 deg); the turn at 100 s brings it to
-#: 1.9 deg, ``aligned`` at 105 s (0.8 deg off); with the gyro scale-factor states
-#: (align/gyro_scale.py) it ends ``aligned``, 1.9 deg off under 1.85 deg
-MVBAKF_CAR_PHASES = ('coarse', 'fine', 'aligned')
 #: short stages so that a 100-160 s still run reaches ``aligned``; a tactical gyro finds
 #: north to about 5 deg at rest, so the heading bound for ``aligned`` is set to 10 deg
 QUICK_STAGES = {'coarse_duration': 20.0, 'stage_min_duration': 10.0,
@@ -151,7 +146,7 @@ CASES = (
     Case('mvbakf_car', 'mvbakf', 'bag', 'MVBAKF on seed 003\'s car (MEMS), params from a '
          'YAML file', scenario='seed003_car', seed=5, bag_duration=120.0,
          params={**CAR, 'mvbakf_tau': 6.0, 'nav_forgetting': 0.95, 'nav_iterations': 5},
-         via_yaml=True, expect=MVBAKF_CAR_PHASES),
+         via_yaml=True, expect=MEMS_CAR_PHASES),
     Case('ukf_car', 'ukf', 'bag', '18-state UKF on seed 003\'s car (MEMS)',
          scenario='seed003_car', seed=5, bag_duration=120.0, params=dict(CAR),
          expect=MEMS_CAR_PHASES),
