@@ -202,7 +202,8 @@ ALIGNMENT_PARAMS = (
           'current 20-30', 0.0, 90.0),
     Param('course_heading', True, 'GNSS-aided filters: while the published heading is less '
           'certain than the GNSS course of a straight leg (5-30 s), that course is given to '
-          'the filter as a heading fix (the vehicle moves along its forward axis); off for a '
+          'the filter as a heading fix (the vehicle moves along its forward axis); not on legs '
+          'with GNSS velocity above track_min_speed_mps (the track heading\'s); off for a '
           'vehicle that crabs or moves sideways (docs/alignment_node.md)'),
     Param('course_heading_sideslip_deg', 5.0, 'course heading aid: the sideslip (crab) '
           '1-sigma of a straight leg added to the course\'s own, deg: a car 1, a skid-steer '
