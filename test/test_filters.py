@@ -437,3 +437,21 @@ def test_sqrt_psd_roots_definite_semidefinite_and_diagonal_matrices():
         LL = np.abs(L) @ np.abs(L).T
         assert np.all(np.abs(L @ L.T - want) <= roundoff(2 * (len(A) + 1), LL))
     assert np.array_equal(sqrt_psd(np.diag([4.0, 9.0])), np.linalg.cholesky(np.diag([4.0, 9.0])))
+
+
+def test_asckf_takes_a_semi_definite_covariance():
+    """P set to a rank-deficient matrix (a state held at zero variance): no LinAlgError, a
+    lower-triangular root whose product is P to round-off (an eigen-root of a 4x4 matrix of
+    entries up to 1: a few hundred eps), where Cholesky alone raised (ground matrix run)."""
+    from sins_align_ros.filters.asckf import ASCKF
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(4, 2))
+    P = A @ A.T                                    # rank 2
+    P[3, :] = P[:, 3] = 0.0                        # and a held state
+    with pytest.raises(np.linalg.LinAlgError):
+        np.linalg.cholesky(P)
+    f = ASCKF(np.zeros(4), np.eye(4), np.eye(4) * 1e-6, np.eye(2))
+    f.P = P
+    assert np.allclose(np.triu(f.S, 1), 0.0)
+    np.testing.assert_allclose(f.S @ f.S.T, P, rtol=0, atol=500 * np.finfo(float).eps
+                               * np.abs(P).max())

@@ -121,7 +121,19 @@ class ASCKF:
 
     @P.setter
     def P(self, value):
-        self.S = chol_lower(np.asarray(value, dtype=float))
+        """Set ``S`` to a lower-triangular root of ``value`` (n, n).
+
+        Cholesky where ``value`` is definite; a semi-definite one (a state held at zero
+        variance, the product ``S S^T`` of a rank-deficient root read back, changed and
+        set again: the Gauss-Markov position noise of ``align/epoch_noise.py`` on a raw
+        MEMS car, ground integrity matrix, seed run aborted with LinAlgError) takes the
+        clipped eigen-root, made triangular by ``tria``.
+        """
+        value = np.asarray(value, dtype=float)
+        try:
+            self.S = chol_lower(value)
+        except np.linalg.LinAlgError:
+            self.S = tria(sqrt_psd(value))
 
     def transform(self, T):
         """Change state coordinates: ``x <- T x``, ``P <- T P T^T`` (square-root form)."""
