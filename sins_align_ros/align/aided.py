@@ -481,13 +481,15 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
         """Filter epoch for ``fix``: predict over the interval, update, feed back.
 
         Returns the filter's update record. Raises :class:`FilterDiverged` on
-        non-finite or singular numbers and when the gate gives up (``GnssGate``).
+        non-finite, overflowing or singular numbers and when the gate gives up
+        (``GnssGate``): an ASCKF on a raw-MEMS ground case carried its height past 1e154 m
+        and ``earth.gravity`` overflowed, aborting a benchmark instead of restarting.
         """
         kf = self.kf
         try:
             z, idx = self.measurement(fix, t_now)
             fx = self._transition()
-        except (np.linalg.LinAlgError, ValueError):
+        except (np.linalg.LinAlgError, ValueError, ArithmeticError):
             raise FilterDiverged(f'filter diverged at t={fix.t:.3f} s (non-finite navigation '
                                  'state)') from None
         rows = self.rows[idx]
