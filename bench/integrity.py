@@ -36,6 +36,7 @@ import pickle
 import subprocess
 import sys
 import time
+import traceback
 from pathlib import Path
 
 # one BLAS thread per worker process
@@ -179,7 +180,11 @@ def run_job(job):
     data = simulate_cached(sc, seed, CACHE) if cached else simulate(sc, seed)
     res = {}
     for f, told in cells:
-        run = run_pipeline(told_params(sc, f, told), data)
+        try:
+            run = run_pipeline(told_params(sc, f, told), data)
+        except Exception as exc:    # noqa: BLE001 -- one crashed run fails its cell, not the page
+            res[(f, told)] = crashed_run(f, exc, f'{key} {grade} seed {seed} {f} told {told}')
+            continue
         r = run_integrity(run, sc.imu_rate_hz)
         p = run.pipeline
         r['refused'] = r['n_samples'] == 0 and any('the stationary filter' in w
@@ -188,6 +193,20 @@ def run_job(job):
         r['wall'] = run.wall
         res[(f, told)] = r
     return res
+
+
+def crashed_run(fine_filter, exc, where):
+    """A run dict for a pipeline that raised: counted silent-wrong (its cell fails), why named.
+
+    The traceback goes to stderr with ``where`` (scenario, grade, seed, filter, model),
+    so that the run can be repeated alone.
+    """
+    print(f'\nCRASHED {where}:\n{traceback.format_exc()}', file=sys.stderr)
+    nan3 = np.full(3, np.nan)
+    return {'silent': True, 'why': f'crashed ({where}): {type(exc).__name__}: {exc}',
+            'end_err': nan3, 'end_sigma': nan3, 'end_inside': None, 'phase': 'crashed',
+            'n_samples': 0, 'heading_unknown': False, 'outside': nan3, 'refused': False,
+            'ran': fine_filter, 'wall': 0.0}
 
 
 def plan(args):
