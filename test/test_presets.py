@@ -48,21 +48,7 @@ def test_config_files_exist():
     assert any(p.name.startswith('alignment_') for p in YAMLS)
 
 
-#: measured no better than the defaults, not fixed yet (bench/results/presets.md; reported
-#: to the lead, issue 44): the filter each runs does worse there than the defaults' kf
-KNOWN_NO_BETTER = {
-    'alignment_usv_vbch.yaml': 'vbch: final heading RMS 0.43 deg against kf\'s 0.33 on '
-                               'seed004_medium, 9 of 10 runs aligned against 10',
-}
-
-
-def _marked(path):
-    why = KNOWN_NO_BETTER.get(path.name)
-    return pytest.param(path, id=path.name, marks=[pytest.mark.xfail(
-        strict=True, reason=why)] if why else [])
-
-
-@pytest.mark.parametrize('path', [_marked(p) for p in YAMLS])
+@pytest.mark.parametrize('path', YAMLS, ids=lambda p: p.name)
 def test_every_config_file_is_measured_and_not_worse_than_defaults(path):
     """Named in presets.md with the digest of its current parameters, verdict not "no better"."""
     table = verdicts()
