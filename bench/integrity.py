@@ -196,7 +196,7 @@ def run_job(job):
 
 
 def crashed_run(fine_filter, exc, where):
-    """A run dict for a pipeline that raised: counted silent-wrong (its cell fails), why named.
+    """Return the run dict of a pipeline that raised: silent-wrong (its cell fails), why named.
 
     The traceback goes to stderr with ``where`` (scenario, grade, seed, filter, model),
     so that the run can be repeated alone.
