@@ -160,10 +160,12 @@ def _gnss(sigma_m, reported_var=None, seconds=60, seed=3):
 
 
 @pytest.mark.parametrize('ff, reported, widened', [('kf', None, True), ('ckf', 25.0, False),
-                                                   ('kf', 25.0, True), ('ckf', 1.0, True)])
+                                                   ('kf', 25.0, False), ('ukf', 1.0, True),
+                                                   ('mvbakf', 25.0, True), ('ckf', 1.0, True)])
 def test_gnss_noise_above_the_model_widens_it(ff, reported, widened):
-    # 5 m fixes: configured 1 m (kf, ckf without reports) or reported 5 m (used by ckf
-    # only) or reported 1 m (too small: widened and no longer used)
+    # 5 m fixes: configured 1 m (kf, ckf without reports) or reported 5 m (used by ckf,
+    # asckf without adaptation, kf and ukf; not by the VB filters, whose R is their own)
+    # or reported 1 m (too small: widened and no longer used)
     cfg = {**DEFAULTS, 'fine_filter': ff}
     c = check(still(), POS, cfg, at_rest=False, gnss=_gnss(5.0, reported))
     assert c.figures['gnss_pos_noise_m'] == pytest.approx(5.0, rel=0.3)

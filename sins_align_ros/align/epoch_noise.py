@@ -73,10 +73,7 @@ class EpochNoise:
             return
         R = self.R_nominal.copy()
         if self.use_reported_cov:
-            if fix.pos_var is not None:
-                R[0, 0], R[1, 1] = fix.pos_var
-            if self.use_velocity and fix.vel_var is not None:
-                R[2, 2], R[3, 3] = fix.vel_var
+            self._take_reported(R, fix)
         if self.sets_R:
             s = np.sqrt(self.R_scale)
             R = R * np.outer(s, s)
@@ -88,6 +85,22 @@ class EpochNoise:
         if fix.arm_var is not None:
             R[np.diag_indices(len(R))] += fix.arm_var[self.MEAS_ENU]
         self.kf.R = R
+
+    def _take_reported(self, R, fix):
+        """Put ``fix``'s reported east/north variances on R's diagonal (in place).
+
+        Row ``r`` of the measurement vector measures ENU axis ``MEAS_ENU[r]``: the rows of
+        east and north position (axes 0, 1) take ``fix.pos_var``, those of east and north
+        velocity (3, 4) ``fix.vel_var`` when the engine measures velocity; the height and
+        vertical velocity keep R's (a NavSatFix's horizontal covariance is what
+        ``GnssFix`` carries). Seed 000's rows are E, N position then E, N velocity, the
+        navigation filters' position E, N, U then velocity E, N, U.
+        """
+        for r, axis in enumerate(self.MEAS_ENU[:len(R)]):
+            if axis < 2 and fix.pos_var is not None:
+                R[r, r] = fix.pos_var[axis]
+            elif 3 <= axis < 5 and self.use_velocity and fix.vel_var is not None:
+                R[r, r] = fix.vel_var[axis - 3]
 
     def widen_gnss_noise(self, excess, block_s):
         """Apply the long-horizon test's ``excess``: row -> (variance m^2 or (m/s)^2, factor).

@@ -45,14 +45,22 @@ def is_aided(fine_filter):
     return fine_filter in prm.MOVING_FILTERS
 
 
+#: the filters that take R from the GNSS messages (``use_reported_gnss_covariance``): those
+#: whose R the engine sets, seed 000's family and the 15/18-state ``kf`` and ``ukf``; not
+#: the variational-Bayes filters (``vbakf``, ``mvbakf``, ``vbckf``, ``vbch``), whose R is
+#: their own posterior, nor ``asckf`` while its Sage-Husa estimator sets R
+REPORTED_COV_FILTERS = ('ckf', 'asckf', 'kf', 'ukf')
+
+
 def uses_reported_covariance(cfg):
     """Tell whether the engine of ``cfg['fine_filter']`` takes R from the GNSS messages.
 
-    Only seed 000's family does, and not while its Sage-Husa estimator sets R.
+    :data:`REPORTED_COV_FILTERS`, when ``use_reported_gnss_covariance`` is on (``asckf``
+    only without adaptation).
     """
     ff = cfg['fine_filter']
-    return bool(cfg['use_reported_gnss_covariance']) and (
-        ff == 'ckf' or (ff == 'asckf' and not cfg['asckf_adaptive']))
+    return bool(cfg['use_reported_gnss_covariance']) and ff in REPORTED_COV_FILTERS and not (
+        ff == 'asckf' and cfg['asckf_adaptive'])
 
 
 def gnss_sigma(cfg, name, reported):
@@ -162,6 +170,6 @@ def _navigation(cfg, noise, C, v_n, lat, lon, h, sigma, s_v, gate):
         C, v_n, lat, lon, h, P0, Qc, R, method=ff, tau_g=tau_g,
         tau_a=cfg['accel_bias_tau_s'], rho=cfg['nav_forgetting'],
         n_iter=cfg['nav_iterations'], tau=cfg['mvbakf_tau'], moment=cfg['mvbakf_moment'],
-        use_velocity=cfg['use_gnss_velocity'],
+        use_velocity=cfg['use_gnss_velocity'], use_reported_cov=uses_reported_covariance(cfg),
         track_heading_sigma_deg=cfg['track_heading_sigma_deg'],
         track_min_speed_mps=cfg['track_min_speed_mps'], **gate)

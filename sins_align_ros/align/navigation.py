@@ -154,6 +154,11 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
         The GNSS-track heading that replaces a heading lost to the linear model (module
         docstring): its 1-sigma and the least horizontal speed (the parameters of the
         same names; their defaults).
+    use_reported_cov : bool
+        Take the east and north position and velocity noise of each epoch from the
+        receiver's reported variances (``GnssFix.pos_var``, ``vel_var``) instead of ``R``'s
+        (:meth:`~.epoch_noise.EpochNoise._set_epoch_noise`); ignored by ``vbakf`` and
+        ``mvbakf``, whose R is their own estimate.
     """
 
     i_phi, i_v = lc.I_PHI, lc.I_V
@@ -163,7 +168,7 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
     def __init__(self, C_b_n, v_n, lat, lon, h, P0, Qc, R, method='mvbakf', tau_g=300.0,
                  tau_a=3600.0, rho=0.95, n_iter=5, tau=6.0, moment='mean', use_velocity=True,
                  gate_probability=None, gate_max_rejects=10, track_heading_sigma_deg=10.0,
-                 track_min_speed_mps=2.0):
+                 track_min_speed_mps=2.0, use_reported_cov=False):
         if method not in NAV_FILTERS:
             raise ValueError(f'unknown navigation filter {method!r}')
         self.method = method
@@ -180,6 +185,7 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
             kf = MVBAKF(x0, P0, Q, R, tau=tau, rho=rho, n_iter=n_iter, moment=moment)
         else:
             kf = UKF(x0, P0, Q, R)
+        kf_sets_R = not getattr(kf, 'estimates_R', False)
         self.tau_g, self.tau_a = float(tau_g), float(tau_a)
         self.i_eps = lc.I_EPS15 if self.n0 == 15 else lc.I_EPSB
         self.i_nab = lc.I_NAB15 if self.n0 == 15 else lc.I_NAB18
@@ -196,7 +202,8 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
         self._F = self._Phi = self._T_last = None
         super().__init__(C_b_n, v_n, lat, lon, h, kf, Qc, R, rows=lc.MEAS_STATES,
                          gate=GnssGate(gate_probability, gate_max_rejects, sizes=(3, 6)),
-                         use_velocity=use_velocity, attitude_sums=True)
+                         use_velocity=use_velocity, attitude_sums=True,
+                         use_reported_cov=use_reported_cov and kf_sets_R)
 
     # -- IMU rate ---------------------------------------------------------------------
     def _correct_imu(self, dtheta, dv, dt):

@@ -223,8 +223,11 @@ ALIGNMENT_PARAMS = (
           '(also when the innovations switch it on), s', 1.0, 1e5),
     Param('use_gnss_velocity', True, 'measure gnss/vel in the moving-base filters as well '
           'as the position (when gnss/vel messages arrive)'),
-    Param('use_reported_gnss_covariance', True, 'take the GNSS noise from each message\'s '
-          'covariance when it is known (ckf and asckf without adaptation)'),
+    Param('use_reported_gnss_covariance', True, 'take the east/north GNSS position and '
+          'velocity noise from each message\'s covariance when it is known, instead of '
+          'gnss_pos_sigma_m / gnss_vel_sigma_mps (ckf, asckf without adaptation, kf, ukf; the '
+          'VB filters estimate R); the self-check and the consistency monitor widen it where '
+          'the data show more, never narrow it'),
     Param('asckf_fading', True, 'asckf: multiple fading factors (seed 000 eq. 7-17)'),
     Param('asckf_adaptive', True, 'asckf: Sage-Husa measurement-noise estimation with the '
           'divergence test (seed 000 eq. 39, 20)'),
