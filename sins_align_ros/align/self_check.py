@@ -38,7 +38,7 @@ the finding is reported:
   is mostly vibration, so the accelerometer bias is raised by the grade the *gyro*
   noise shows (:data:`ACCEL_BIAS_BY_GYRO_NOISE`) instead, and the gyro bias instability
   counts the gyro noise at most to :data:`GYRO_NOISE_FOR_INSTABILITY_MOVING` (a vibrating
-  chassis's is random walk, not a wandering bias).
+  chassis's is no sign of a wandering bias).
 * **GNSS noise**: the third differences of the fixes in the coarse window (horizontal
   position, height, and the GNSS velocity when it comes) show the receiver's noise the same
   way (a vehicle's jerk hardly enters them at 1-10 Hz); a robust (median) estimate
@@ -122,8 +122,9 @@ GYRO_INSTABILITY_PER_ARW = 15.0
 #: on a moving base, the most gyro white noise (deg/sqrt(h)) counted for the bias
 #: instability: our consumer MEMS preset's 3 (45 deg/h; that preset's is 50). Third
 #: differences see a vibrating chassis as noise (robot_skid: 37 deg/sqrt(h) from a 0.42
-#: deg/sqrt(h) gyro), which is random walk in the attitude (``gyro_arw_dpsh`` takes it
-#: whole) but no sign of a bias that wanders faster; 15 x 37 = 555 deg/h of instability
+#: deg/sqrt(h) gyro), which ``gyro_arw_dpsh`` takes whole as random walk (on the safe
+#: side: a mount's vibration is bounded in angle) but which is no sign of a bias that
+#: wanders faster; 15 x 37 = 555 deg/h of instability
 #: kept the robot's vertical drift from ever being learnt from its straight legs' courses
 #: (its sigma still 500 deg/h after 300 s, the heading sigma growing by 1 deg every 8 s
 #: between legs while the error held, and published unknown at the end of most runs).
