@@ -262,7 +262,8 @@ def test_a_lost_heading_takes_no_information_from_the_horizontal_force(method):
     axis, and a GNSS velocity update leaves the heading variance where the prediction put
     it (no heading row in ``F`` reaches the velocity: the update cannot shrink it, beyond
     round-off). Found again (``heading_lost`` False) the same turn gives the model its force,
-    and the update shrinks the heading variance.
+    and the update shrinks the heading variance; so does a heading lost for longer than
+    ``LOST_WAIT_S`` with no acquisition (the linear model's own convergence is let try).
     """
     from sins_align_ros.align.aided import ANGLE_UNKNOWN_VAR, GnssFix
     n = 18 if method == 'ukf' else 15
@@ -292,6 +293,19 @@ def test_a_lost_heading_takes_no_information_from_the_horizontal_force(method):
         shrink[lost] = eng.kf.P[2, 2] / var_pred
     assert shrink[True] == pytest.approx(1.0, abs=1e-6)
     assert shrink[False] < 1.0 - 1e-3          # measurably (kf 0.5x, ukf 0.98x from 29 deg)
+    # lost for longer than the wait for an acquisition: the linear model is let try
+    from sins_align_ros.align.navigation import LOST_WAIT_S
+    eng = IntegratedNavigation(np.eye(3), np.array([1.0, 0.0, 0.0]), LAT, 0.0, 0.0, P0, Qc,
+                               R, method=method, heading_lost=True)
+    eng.lost_s = LOST_WAIT_S
+    for _ in range(20):
+        eng.step_imu(np.array([0.0, 0.0, 0.5 * 0.01]), f_b * 0.01, 0.01)
+    eng.predict(without_gnss=False)
+    var_pred = eng.kf.P[2, 2]
+    m = eng.mech
+    eng.update(GnssFix(0.2, m.lat, m.lon, m.h, m.v_n.copy()), 0.2)
+    assert eng.heading_lost
+    assert eng.kf.P[2, 2] / var_pred < 1.0 - 1e-3
 
 
 def test_F_entries_are_the_seeds_block_products_under_the_metre_position_variables():
