@@ -4,8 +4,9 @@ import math
 import numpy as np
 import pytest
 
-from sins_align_ros.align.rotation_error import (COHERENCE_FACTOR, ROTATION_MEMORY_S,
-                                                 RotationError, unseparable_tilt_var)
+from sins_align_ros.align.rotation_error import (COHERENCE_FACTOR, HEADING_COHERENCE_FACTOR,
+                                                 ROTATION_MEMORY_S, RotationError,
+                                                 unseparable_tilt_var)
 from sins_align_ros.align.self_check import SCALE_BY_GYRO_NOISE
 from sins_align_ros.eval.integrity import run_integrity
 from sins_align_ros.eval.run import run_pipeline
@@ -42,7 +43,8 @@ def test_a_turn_adds_its_whole_coherent_error_not_a_white_share():
     s, m = 0.02, 0.005
     eng = _Engine(yaw=math.radians(30.0))
     eng.set_rotation_error(s, m)
-    s, m = COHERENCE_FACTOR * s, COHERENCE_FACTOR * m      # the model's sigmas
+    # the model's sigmas: the heading's (the up row) at its own factor
+    s, m = HEADING_COHERENCE_FACTOR * s, COHERENCE_FACTOR * m
     Q = _turn(eng, math.pi / 2, 30, T=0.0)       # no forgetting within the turn
     phi = Q[3:6, 3:6]
     # level body: body z is up; the x, y leak of m each, turned by the yaw into E, N

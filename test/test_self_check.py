@@ -319,6 +319,26 @@ def test_a_moving_mems_triad_gets_its_class_biases_and_scale_factors_never_narro
                 'gyro_bias_dph'} & set(c.widened)
 
 
+def test_a_vibrating_chassis_raises_the_bias_instability_only_to_the_consumer_class():
+    """Under way, 37 deg/sqrt(h) of third-difference noise (a skid-steer chassis's vibration
+    on a 0.42 deg/sqrt(h) gyro): the white noise and the bias are raised by all of it
+    (67 x 37 deg/h), the bias instability by at most the consumer class's 3 deg/sqrt(h)
+    (15 x 3 = 45 deg/h, not 15 x 37 = 555); at rest the noise counts whole, as before."""
+    from sins_align_ros.align.self_check import (GYRO_INSTABILITY_PER_ARW,
+                                                 GYRO_NOISE_FOR_INSTABILITY_MOVING)
+    window = still(arw=37.0 * DPSH, vrw=120.0 * UG)
+    c = check(window, POS, DEFAULTS, at_rest=False)
+    arw = c.widened['gyro_arw_dpsh']
+    assert arw == pytest.approx(37.0, rel=0.1)
+    assert c.widened['gyro_bias_dph'] == pytest.approx(GYRO_BIAS_PER_ARW_MOVING * arw)
+    assert GYRO_NOISE_FOR_INSTABILITY_MOVING == 3.0
+    assert c.widened['gyro_bias_instability_dph'] == pytest.approx(
+        GYRO_INSTABILITY_PER_ARW * GYRO_NOISE_FOR_INSTABILITY_MOVING)
+    c = check(window, POS, DEFAULTS, at_rest=True)
+    assert c.widened['gyro_bias_instability_dph'] == pytest.approx(
+        GYRO_INSTABILITY_PER_ARW * c.widened['gyro_arw_dpsh'])
+
+
 def test_the_navigation_and_tactical_classes_are_as_before():
     from sins_align_ros.align.self_check import (ACCEL_BIAS_BY_GYRO_NOISE,
                                                  ACCEL_SCALE_BY_GYRO_NOISE,

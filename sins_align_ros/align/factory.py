@@ -13,7 +13,8 @@ import numpy as np
 from . import params as prm
 from .gnss_gate import GnssGate
 from .moving import MovingBaseAlignment, model_noise as moving_model_noise
-from .navigation import IntegratedNavigation, gyro_tau, model_noise as nav_model_noise
+from .navigation import (HEADING_LINEAR_MAX_DEG, IntegratedNavigation, gyro_tau,
+                         model_noise as nav_model_noise)
 from .robust import RobustAlignment, model_noise as robust_model_noise
 from .stationary import StationaryEngine
 from ..models.stationary import NoiseSpec, StationaryModel
@@ -152,6 +153,9 @@ def _navigation(cfg, noise, C, v_n, lat, lon, h, sigma, s_v, gate):
     """Seed 001's 15-state (kf, vbakf, mvbakf) or seed 003's 18-state (ukf) engine."""
     ff = cfg['fine_filter']
     n = 18 if ff == 'ukf' else 15
+    # a coarse heading beyond the model's range is lost until found again (navigation.py)
+    cap = UKF_HEADING_SIGMA_MAX if ff == 'ukf' else math.radians(HEADING_LINEAR_MAX_DEG)
+    lost = bool(sigma[2] > cap)
     if ff == 'ukf':
         # sigma points sit at +-sqrt(n) sigma: a 90 deg heading sigma puts them 380 deg out,
         # around the circle, and the tilt collapses (still MEMS IMU: tilt 10 sigma off).
@@ -172,4 +176,4 @@ def _navigation(cfg, noise, C, v_n, lat, lon, h, sigma, s_v, gate):
         n_iter=cfg['nav_iterations'], tau=cfg['mvbakf_tau'], moment=cfg['mvbakf_moment'],
         use_velocity=cfg['use_gnss_velocity'], use_reported_cov=uses_reported_covariance(cfg),
         track_heading_sigma_deg=cfg['track_heading_sigma_deg'],
-        track_min_speed_mps=cfg['track_min_speed_mps'], **gate)
+        track_min_speed_mps=cfg['track_min_speed_mps'], heading_lost=lost, **gate)

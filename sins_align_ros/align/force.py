@@ -80,18 +80,20 @@ class ForceModel:
     #: through a horizontal force the error model dropped (:meth:`_model_force`)
     _unmodelled_acc_var = 0.0
 
-    def _model_force(self, f_n, lat, h):
+    def _model_force(self, f_n, lat, h, max_heading_var=np.inf):
         """Return the specific force (3,) the error model uses (:func:`model_force`).
 
         ``f_n`` (3,) the interval's mean force as the model takes it (ENU, m/s^2); the
         sigma is the filter's own tilt and accelerometer-bias variances'. A dropped
-        force's heading variance is kept for :meth:`_force_noise`.
+        force's heading variance (at most ``max_heading_var``, rad^2) is kept for
+        :meth:`_force_noise`.
         """
         d = self.kf.P.diagonal()
         var_phi = d[self.i_phi].tolist()
         var_bias = 0.0 if self.i_nab is None else float(d[self.i_nab].max())
         f, self._unmodelled_acc_var = model_force(
-            f_n, max(var_phi[0], var_phi[1]), var_phi[2], var_bias, earth.gravity(lat, h))
+            f_n, max(var_phi[0], var_phi[1]), min(var_phi[2], max_heading_var), var_bias,
+            earth.gravity(lat, h))
         return f
 
     def _force_noise(self, T):

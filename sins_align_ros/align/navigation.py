@@ -41,6 +41,26 @@ gyro bias) the 15-state filters published 8-15 deg of heading sigma over a headi
   left standing from the start had a USV in severe sea throw away a heading known to
   14' for a track 48 deg off, 220 s later. The UKF (``ukf``, seed 003) keeps the heading
   error nonlinear in its model instead (seed 004 eq. 3) and keeps its own force.
+* A lost heading is found again by a nonlinear acquisition only. While the heading is
+  lost (held at the linear range, or handed over by the coarse stage beyond it: above
+  :data:`HEADING_LINEAR_MAX_DEG` for ``kf``, above the UKF's 30-deg prior cap for
+  ``ukf``) the error model is given the vertical specific force alone
+  (:meth:`_drop_horizontal_force`); the horizontal force's velocity error is process noise
+  of an unknown angle. The linear model would read the turns' accelerations in the GNSS
+  velocity as heading information it cannot hold: a skid-steer robot at 1 m/s with
+  Doppler velocity (robot:consumer, raw AHRS triads) started its fine stage 50-170 deg off
+  (no track at 1 m/s, a coarse heading of an unknown angle), and within 8-12 s ``kf`` and
+  ``ukf`` alike claimed 7-9 deg of sigma about it, their tilt was pulled 5-10 deg off
+  under 0.8 deg in the turns, the vertical gyro drift estimate walked and the heading
+  swept at 1-2 deg/s (4-8 silent-wrong runs of 10 per cell); the course heading aid,
+  a bootstrap, never fed it since the heading looked found. The heading is found again
+  by the GNSS track (above ``track_min_speed_mps``, below), a straight leg's course
+  (:mod:`.course_heading`, taken directly) or an external heading taken directly. It
+  waits for one at most :data:`LOST_WAIT_S` (two of the longest legs); a vehicle that
+  offers none in that time is left to the linear model's own convergence, as before: a
+  MEMS USV rolling in a seaway below the track speed (seed 004, no straight leg) had its
+  heading found by it from 45 deg off (1-1.4 deg RMS at the end), and held lost it ended
+  unknown, 55 deg off.
 * The claim. The heading goes out with the filter's variance only while its 1-sigma is
   at most :data:`HEADING_CLAIM_MAX_DEG`, where the linearisation holds; above it the
   heading is published as unknown (variance pi^2/3, the fine stage's unknown angle),
@@ -77,6 +97,9 @@ HEADING_LINEAR_MAX_DEG = 15.0
 #: heading 1-sigma (deg) above which the heading is published as unknown
 HEADING_CLAIM_MAX_DEG = 10.0
 HEADING_LINEAR_MAX_VAR = math.radians(HEADING_LINEAR_MAX_DEG) ** 2
+#: seconds a lost heading waits for a nonlinear acquisition with the horizontal force out
+#: of the model; then the linear model's own convergence is let try (module docstring)
+LOST_WAIT_S = 60.0
 HEADING_CLAIM_MAX_VAR = math.radians(HEADING_CLAIM_MAX_DEG) ** 2
 
 
@@ -159,6 +182,9 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
         receiver's reported variances (``GnssFix.pos_var``, ``vel_var``) instead of ``R``'s
         (:meth:`~.epoch_noise.EpochNoise._set_epoch_noise`); ignored by ``vbakf`` and
         ``mvbakf``, whose R is their own estimate.
+    heading_lost : bool
+        The heading handed over is beyond the model's range (an unknown angle): lost
+        until a nonlinear acquisition finds it (module docstring).
     """
 
     i_phi, i_v = lc.I_PHI, lc.I_V
@@ -168,7 +194,7 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
     def __init__(self, C_b_n, v_n, lat, lon, h, P0, Qc, R, method='mvbakf', tau_g=300.0,
                  tau_a=3600.0, rho=0.95, n_iter=5, tau=6.0, moment='mean', use_velocity=True,
                  gate_probability=None, gate_max_rejects=10, track_heading_sigma_deg=10.0,
-                 track_min_speed_mps=2.0, use_reported_cov=False):
+                 track_min_speed_mps=2.0, use_reported_cov=False, heading_lost=False):
         if method not in NAV_FILTERS:
             raise ValueError(f'unknown navigation filter {method!r}')
         self.method = method
@@ -192,7 +218,9 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
         #: epochs at which the heading variance was held at the linear model's range, and
         #: times the heading was then taken from the GNSS track
         self.n_heading_held = self.n_heading_reacquired = 0
-        self.heading_lost = False
+        self.heading_lost = bool(heading_lost)
+        #: seconds the heading has been lost (the wait for a nonlinear acquisition)
+        self.lost_s = 0.0
         self.track_heading_sigma = math.radians(float(track_heading_sigma_deg))
         self.track_min_speed = float(track_min_speed_mps)
         #: sensor compensation: gyro constant, gyro Markov, accelerometer (body, SI)
@@ -222,6 +250,7 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
         """
         self._interval_ended_bound()
         self._scale_states_due()
+        self.lost_s = self.lost_s + T if self.heading_lost else 0.0
         if T > 0.0:
             self.eps_markov *= math.exp(-T / self.tau_g)
             self.nab *= math.exp(-T / self.tau_a)
@@ -236,7 +265,9 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
         f_n, v_n, C = s.dv_sum / T, s.v_sum / T, s.C_sum / T
         C = orthonormalize(C)
         m = self.mech
-        if self.method != 'ukf':
+        if self.heading_lost and self.lost_s < LOST_WAIT_S:
+            f_n = self._drop_horizontal_force(f_n, m.lat, m.h)
+        elif self.method != 'ukf':
             f_n = self._model_force(f_n, m.lat, m.h)
         F = lc.F_matrix(C, f_n, v_n, m.lat, m.h, self.tau_g, self.tau_a, self.n0)
         w_b = None
@@ -251,6 +282,25 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
             args = (f_n, v_n, C, m.lat, m.h, self.tau_g, self.tau_a, T)
             return batched(lambda X: lc.propagate18(X, *args, substeps=sub, w_b=w_b))
         return linear(self._Phi)
+
+    def _drop_horizontal_force(self, f_n, lat, h):
+        """Return the force (3,) the model uses while the heading is lost: the vertical alone.
+
+        ``f_n`` (3,) the interval's mean specific force (ENU, m/s^2). A horizontal part
+        beyond :data:`~.force.FORCE_SIGNIFICANCE` sigma of the filter's own tilt and
+        accelerometer-bias errors is a real force (a turn, a braking): its velocity error,
+        ``(C(psi) - I) f_h`` for a heading error ``psi`` anywhere in the circle, goes to the
+        velocity process noise as an unknown angle's (``ANGLE_UNKNOWN_VAR |f_h|^2`` per
+        axis, :meth:`_force_noise`) instead of into the heading and tilt rows (module
+        docstring). One within it is the filter's own tilt error times g (a still base):
+        dropped as :func:`~.force.model_force` drops it, with the heading variance held at
+        the linear range (a UKF's lost heading grows beyond it; the true force is nil).
+        """
+        f_model = self._model_force(f_n, lat, h, max_heading_var=HEADING_LINEAR_MAX_VAR)
+        f_n = np.asarray(f_n, dtype=float)
+        if f_model[0] != 0.0 or f_model[1] != 0.0:
+            self._unmodelled_acc_var = ANGLE_UNKNOWN_VAR * float(f_n[0] ** 2 + f_n[1] ** 2)
+        return np.array([0.0, 0.0, f_n[2]])
 
     def _interval_ended_bound(self):
         """Hold a linear filter's heading variance within the model's range (module docstring)."""

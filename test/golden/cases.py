@@ -58,10 +58,13 @@ CAR = {'initial_latitude_deg': 30.5, 'initial_longitude_deg': 114.3, 'initial_he
 FOG = {'gyro_bias_dph': 200.0, 'gyro_arw_dpsh': 1.0, 'accel_bias_ug': 2000.0,
        'accel_vrw_ug_rthz': 200.0, 'coarse_duration': 10.0, 'gnss_pos_sigma_m': 0.5,
        'gnss_vel_sigma_mps': 0.05}
-#: the MEMS car cases end in fine: the gyro scale-factor model at twice the told sigma
-#: (align/rotation_error.py COHERENCE_FACTOR) holds the heading sigma at 2.8 deg after the
-#: turn at 100 s (1.8 deg at 1x, aligned at 106 s), still shrinking at the bag's end
+#: the MEMS car cases ended in fine while the gyro scale-factor model took twice the told
+#: sigma for the heading too (align/rotation_error.py): it held the heading sigma at 2.8 deg
+#: after the turn at 100 s. At the told sigma (HEADING_COHERENCE_FACTOR 1) MVBAKF is
+#: aligned from 105 s, 1.4 deg off under a 1.9 deg sigma at the end (simulator truth); the
+#: UKF's heading sigma stays above the aligned bound in the bag's 120 s
 MEMS_CAR_PHASES = ('coarse', 'fine')
+MEMS_CAR_PHASES_ALIGNED = ('coarse', 'fine', 'aligned')
 #: short stages so that a 100-160 s still run reaches ``aligned``; a tactical gyro finds
 #: north to about 5 deg at rest, so the heading bound for ``aligned`` is set to 10 deg
 QUICK_STAGES = {'coarse_duration': 20.0, 'stage_min_duration': 10.0,
@@ -146,7 +149,7 @@ CASES = (
     Case('mvbakf_car', 'mvbakf', 'bag', 'MVBAKF on seed 003\'s car (MEMS), params from a '
          'YAML file', scenario='seed003_car', seed=5, bag_duration=120.0,
          params={**CAR, 'mvbakf_tau': 6.0, 'nav_forgetting': 0.95, 'nav_iterations': 5},
-         via_yaml=True, expect=MEMS_CAR_PHASES),
+         via_yaml=True, expect=MEMS_CAR_PHASES_ALIGNED),
     Case('ukf_car', 'ukf', 'bag', '18-state UKF on seed 003\'s car (MEMS)',
          scenario='seed003_car', seed=5, bag_duration=120.0, params=dict(CAR),
          expect=MEMS_CAR_PHASES),
