@@ -40,6 +40,8 @@ from ..nav.mechanization import StationaryStrapdown
 
 #: the filter period is reached when the accumulated time is within this of it, s
 _EPS_T = 1e-9
+#: the smallest initial velocity 1-sigma (m/s) of the still-base filters
+V0_SIGMA = 0.01
 #: the initial misalignment counted, in sigmas, when judging the first stage's nonlinearity
 _K_NONLINEAR = 3.0
 
@@ -91,9 +93,15 @@ class StationaryEngine:
                                         hold_vertical=m.mech.hold_vertical)
         self.g = earth.gravity(lat, h)
         self.x = np.zeros(m.n)
-        self.P = m.P0(0.01, sigma_phi, noise)
-        self.H = m.H()
         zv = np.broadcast_to(np.asarray(zero_velocity_sigma, dtype=float), (3,))
+        #: the initial velocity's 1-sigma per measured axis (m/s): the base's own velocity
+        #: at rest, the zero-velocity sigma (a heaving ship is anywhere in its heave's
+        #: velocity when the stage starts;
+        #: a 0.01 m/s claim there held the offset for tens of seconds, NIS 9 per epoch on
+        #: ship_sway's heave), never below :data:`V0_SIGMA`
+        self.v0_sigma = np.maximum(V0_SIGMA, zv[m.meas])
+        self.P = m.P0(self.v0_sigma, sigma_phi, noise)
+        self.H = m.H()
         self.R = np.diag(zv[m.meas] ** 2)
         #: variances (3,) the model cannot see, added to the attitude covariance at output
         self.floor = m.attitude_floor(lat, noise)
@@ -295,7 +303,7 @@ class StationaryEngine:
         self.coast = None
         self.cruise_floor = cruise_floor(speed_bound, self.lat, self.g)
         self.mech.correct_velocity(self.mech.v_n)
-        P = m.P0(0.01, np.sqrt(np.diag(P_phi)), self.noise)
+        P = m.P0(self.v0_sigma, np.sqrt(np.diag(P_phi)), self.noise)
         P[np.ix_(m.i_phi, m.i_phi)] = P_phi
         self.x = np.zeros(m.n)
         self.P = P
