@@ -187,15 +187,16 @@ def test_a_slow_robot_with_doppler_velocity_does_not_lock_onto_a_wrong_heading(f
     assert abs(err[-1, 2]) <= 3.0 * sig[-1, 2]
 
 
-@pytest.mark.parametrize('seed', [1000, 1003])
+@pytest.mark.parametrize('seed', [1005, 1006])
 def test_a_lost_heading_does_not_pull_the_tilt_through_rtk_velocities(seed):
     """robot_skid with raw AHRS triads and RTK velocities (0.02 m/s), node defaults, ``kf``.
 
     The fine stage starts with the heading lost (no track at 1 m/s). The unknown heading's
     velocity error in the turns, one direction for as long as a turn lasts, read as tilt
-    epoch after epoch: within 10 s the tilt was 2.5-5 deg off under 0.6-0.8 deg (seed
-    1000: 5.7 sigma at 70 s; 1003: 6.9 sigma at 65 s). With the tilt a consider state over
-    such intervals, every 1-s row passes the silent-wrong rule."""
+    epoch after epoch (the 400-s matrix runs: 2.5-5 deg off under 0.6-0.8 deg within 10 s),
+    and the heading the course aid then set was pulled with it: on these 100-s runs 24 %
+    and 41 % of the 1-s rows outside 3 sigma in heading. With the tilt a consider state
+    over such intervals every row passes the silent-wrong rule."""
     sc = scenario('robot_skid', duration=100.0)
     vib = {k: v for k, v in vars(sc.imu).items() if k.startswith('vibration_')}
     sc.imu = SENSOR_GRADES['mems_ahrs'].with_(**vib)
