@@ -455,3 +455,31 @@ def test_asckf_takes_a_semi_definite_covariance():
     assert np.allclose(np.triu(f.S, 1), 0.0)
     np.testing.assert_allclose(f.S @ f.S.T, P, rtol=0, atol=500 * np.finfo(float).eps
                                * np.abs(P).max())
+
+
+@pytest.mark.parametrize('which', ['kf', 'ukf'])
+def test_consider_states_keep_their_estimate_and_an_exact_covariance(which):
+    """A Schmidt consider state: measured through its correlation with a measured one, it
+    keeps its estimate and variance; the measured state gets the optimal update; the
+    cross-covariance shrinks by (1 - k). Closed form for x = (a, b), z = a + v:
+    ``k = P_aa / (P_aa + R)``, ``P_aa' = P_aa R / (P_aa + R)``, ``P_ab' = (1 - k) P_ab``."""
+    from sins_align_ros.filters.linear_kf import KF, linear
+    from sins_align_ros.filters.ukf import UKF
+    P0 = np.array([[4.0, 1.2], [1.2, 1.0]])
+    R = np.array([[1.0]])
+    z = np.array([2.0])
+    cls = KF if which == 'kf' else UKF
+    f = cls(np.zeros(2), P0, np.zeros((2, 2)), R)
+    f.consider = np.array([False, True])
+    hx = batched(lambda X: X[:1])
+    f.step(linear(np.eye(2)), z, hx)
+    k = 4.0 / 5.0
+    assert f.x[1] == 0.0
+    assert_roundoff(f.x[0], k * 2.0, 10)
+    assert_roundoff(f.P[0, 0], 4.0 * 1.0 / 5.0, 20)
+    assert_roundoff(f.P[0, 1], (1.0 - k) * 1.2, 20)
+    assert_roundoff(f.P[1, 1], 1.0, 20)
+    # without it, b takes the optimal gain P_ab / (P_aa + R)
+    g = cls(np.zeros(2), P0, np.zeros((2, 2)), R)
+    g.step(linear(np.eye(2)), z, hx)
+    assert_roundoff(g.x[1], 1.2 / 5.0 * 2.0, 10)

@@ -113,6 +113,12 @@ class CovarianceFilter:
     Holds ``x`` (n,), ``P``, ``Q`` (n, n), ``R`` (M, M) and the diagnostics of
     :class:`GaussianFilter` (no fading, no divergence test); subclasses provide
     ``predict`` and ``step``.
+
+    ``consider`` (n,) bool or None: states the measurement update does not correct
+    (the Schmidt-Kalman "consider" states: their gain rows are zero and the covariance
+    takes that suboptimal gain exactly, so their variance and cross-covariances stay
+    honest). Honoured by :class:`~.linear_kf.KF` and :class:`~.ukf.UKF` (not the VB
+    filters' iterations).
     """
 
     def __init__(self, x0, P0, Q, R):
@@ -124,6 +130,7 @@ class CovarianceFilter:
         self.divergence_flags = 0
         self.last = None
         self.rejected = False
+        self.consider = None
 
     def transform(self, T):
         """Change state coordinates: ``x <- T x``, ``P <- T P T^T``."""

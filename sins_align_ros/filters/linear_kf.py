@@ -116,8 +116,14 @@ class KF(CovarianceFilter):
         """Learn from a rejected epoch (module docstring); the plain KF does not adapt."""
 
     def _update(self, H, z, y, S, R, idx):
-        """Measurement update in Joseph form with the epoch's ``R`` (seed 001 eq. 3)."""
+        """Measurement update in Joseph form with the epoch's ``R`` (seed 001 eq. 3).
+
+        The :attr:`consider` states' gain rows are zeroed first; the Joseph form is exact
+        for any gain, so their covariance stays honest.
+        """
         K = np.linalg.solve(S, H @ self.P).T
+        if self.consider is not None:
+            K[self.consider] = 0.0
         self.x = self.x + K @ y
         I_KH = _identity(len(self.x)) - K @ H
         P = I_KH @ self.P @ I_KH.T + K @ R @ K.T

@@ -40,13 +40,15 @@ def ukf_predict(x, P, fx, Q, alpha=1e-3, beta=2.0, kappa=0.0):
     return xp, 0.5 * (Pp + Pp.T), Xp
 
 
-def ukf_update(x, P, z, hx, R, points=None, alpha=1e-3, beta=2.0, kappa=0.0):
+def ukf_update(x, P, z, hx, R, points=None, alpha=1e-3, beta=2.0, kappa=0.0, consider=None):
     """UKF measurement update.
 
     The sigma points are drawn again from the predicted ``(x, P)`` (so they carry
     the process noise), unless ``points`` (n, 2n+1) are given, e.g. the propagated
-    ones of :func:`ukf_predict`. Returns ``(x, P, y, S)`` with the innovation and
-    its covariance.
+    ones of :func:`ukf_predict`. ``consider`` (n,) bool: states left uncorrected
+    (zero gain rows; the covariance then takes the general-gain form
+    ``P - K Pxz^T - Pxz K^T + K S K^T``). Returns ``(x, P, y, S)`` with the innovation
+    and its covariance.
     """
     lam, Wm, Wc = merwe_weights(len(x), alpha, beta, kappa)
     if points is None:
@@ -59,8 +61,13 @@ def ukf_update(x, P, z, hx, R, points=None, alpha=1e-3, beta=2.0, kappa=0.0):
     Pxz = (Dx * Wc) @ Dz.T
     K = np.linalg.solve(S.T, Pxz.T).T
     y = z - zp
-    x = x + K @ y
-    P = P - K @ S @ K.T
+    if consider is None:
+        x = x + K @ y
+        P = P - K @ S @ K.T
+    else:
+        K[consider] = 0.0
+        x = x + K @ y
+        P = P - K @ Pxz.T - Pxz @ K.T + K @ S @ K.T
     return x, 0.5 * (P + P.T), y, S
 
 
@@ -93,7 +100,8 @@ class UKF(CovarianceFilter):
         idx = measurement_rows(idx, len(self.R))
         self.predict(fx)
         xp, Pp = self.x, self.P
-        x, P, y, S = ukf_update(xp, Pp, z, hx, self.R[np.ix_(idx, idx)], **self.sp)
+        x, P, y, S = ukf_update(xp, Pp, z, hx, self.R[np.ix_(idx, idx)], **self.sp,
+                                consider=self.consider)
         self.last = PriorInnovation(y, S)
         self.rejected = max_nis is not None and self.last.nis() > max_nis
         if not self.rejected:
