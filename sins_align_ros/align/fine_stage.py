@@ -17,7 +17,7 @@ against the GNSS course on straight legs (:mod:`.slow_monitor`: a slow model err
 innovations do not show), and their IMU samples against the sensor model while the vehicle
 moves (:mod:`.motion_check`: vibration and turns the coarse window did not show).
 
-``aligned`` means good enough for the user (DESIGN.md: the attitude meets the user's
+``aligned`` means good enough for the user (docs/design.md: the attitude meets the user's
 thresholds and the consistency checks pass): the roll/pitch and heading 1-sigma must be
 within ``aligned_max_tilt_sigma_deg`` / ``aligned_max_heading_sigma_deg`` and the
 consistency monitor must pass; when either stops holding the phase goes back to

@@ -1,4 +1,4 @@
-"""Accuracy limits of stationary alignment for a simulated scenario (DESIGN.md).
+"""Accuracy limits of stationary alignment for a simulated scenario (docs/design.md, "What aligned well means").
 
 For a still base the achievable accuracy is set by the sensors (seed 002 eq. 15):
 east tilt ``phi_E ~ a_N/g``, north tilt ``phi_N ~ -a_E/g``, heading

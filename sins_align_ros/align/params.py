@@ -11,7 +11,7 @@ import yaml
 
 FINE_FILTERS = ('reduced7', 'stationary10', 'stationary12', 'ckf', 'asckf', 'ukf',
                 'vbakf', 'mvbakf', 'vbckf', 'vbch', 'kf')
-#: fine filters implemented in this version (all of DESIGN.md's, and ``kf``)
+#: fine filters implemented in this version (all of docs/design.md's, and ``kf``)
 AVAILABLE_FINE_FILTERS = FINE_FILTERS
 #: the values of ``fine_filter``: a filter, or ``auto`` (chosen from what the data show)
 FILTER_CHOICES = ('auto',) + FINE_FILTERS
