@@ -225,9 +225,10 @@ def compare(p, d):
     Losses: more silent-wrong runs; fewer runs ending inside 3 sigma; fewer ending
     ``aligned``; more ending with the heading unknown; final heading, heading-while-
     published or tilt RMS more than 10 % larger (heading differences under 0.02 deg, tilt
-    differences under 0.001 deg are the same). Gains: the opposite of any loss, a mean final heading 1-sigma 10 %
-    smaller, a median time to ``aligned`` 10 % shorter. A preset is **better** when it
-    has no loss on any of its scenarios and a gain on at least one, else **no better**.
+    differences under 0.001 deg are the same). Gains: the opposite of any loss, a mean
+    final heading 1-sigma 10 % smaller, a median time to ``aligned`` 10 % shorter. A
+    preset is **better** when it has no loss on any of its scenarios and a gain on at
+    least one, else **no better**.
     """
     losses, gains = [], []
 

@@ -308,7 +308,7 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
         return np.array([0.0, 0.0, f_n[2]])
 
     def _tilt_considered(self):
-        """The consider mask (n,) of the tilt states while a lost heading meets a real force.
+        """Return the consider mask (n,) of the tilt states (a lost heading, a real force).
 
         The velocity error ``(C(psi) - I) f_h`` of a heading error anywhere in the circle
         is one direction for as long as the force keeps it (a turn, a braking): the
