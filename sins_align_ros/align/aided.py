@@ -268,11 +268,11 @@ class ConsistencyRemedies:
     def _set_Qc(self, Qc):
         """Set the process noise densities ``Qc`` (n,); an adaptive filter's Q follows them.
 
-        A filter that estimates Q (``own_Q``) keeps its own (it starts from ``diag(Qc) * 1 s``): it gets the
-        change ``diag(Qc_new - Qc_old) * 1 s`` on top of its estimate, so an inflation
-        is taken back by :meth:`relax` as with the other filters. (Before, its Q was
-        multiplied by the factor and the estimator's copy overwrote it at the next epoch:
-        the inflation never reached an ASCKF, ``filters/asckf.py``.)
+        A filter that estimates Q (``own_Q``) keeps its own (it starts from ``diag(Qc) *
+        1 s``): it gets the change ``diag(Qc_new - Qc_old) * 1 s`` on top of its estimate,
+        so an inflation is taken back by :meth:`relax` as with the other filters. (Before,
+        an ASCKF's Q was multiplied by the factor and the estimator's copy overwrote it at
+        the next epoch: the inflation never reached it, ``filters/asckf.py``.)
         """
         Qc = np.asarray(Qc, dtype=float)
         if self.own_Q:
@@ -455,8 +455,9 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
         (:meth:`~.force.ForceModel._force_noise`) and the rotation-proportional noise of the
         gyro scale factors and misalignment (:mod:`.rotation_error`) and the accelerometer's
         force-proportional velocity noise (:mod:`.force_error`). A filter that estimates
-        Q (``own_Q``) keeps its own; those two parts are lent to it for the step and taken back after
-        it (:meth:`_return_process_noise`).
+        Q (``own_Q``) keeps its own; the parts beyond ``diag(Qc) T`` are lent to it for the
+        step (``kf.Q_lent`` where it has one, never estimated into its Q) and taken back
+        after it (:meth:`_return_process_noise`).
         """
         T = max(self.sums.T, 1e-3)
         E = self._force_noise(T)
