@@ -165,10 +165,9 @@ def test_asckf_on_raw_ahrs_triads_ends_with_its_tilt_inside_3_sigma(monkeypatch)
     own = np.sqrt(np.diag(eng.kf.P[eng.i_phi, eng.i_phi]))
     C_end = euler_to_dcm(data.imu.euler[-1])
     assert np.all(np.abs(r['end_err'][:2] - (C_end @ phi_b)[:2]) <= 3.0 * own[:2])
-    with monkeypatch.context() as mp:
-        mp.setattr(RotationError, 'tilt_floor', lambda self: np.zeros(3))
-        before = run_integrity(run_pipeline(defaults, data), sc.imu_rate_hz)
-    assert before['silent'] and not before['end_inside']
+    # (without the tilt floor this run was silent wrong while the turn-rate noise lent to
+    # the ASCKF was lost at each update; since the loan reaches it (filters/asckf.py
+    # ``Q_lent``) the filter's own sigma covers this seed, so no counterfactual here)
 
 
 def test_the_yaw_rate_leak_into_the_horizontal_gyros_looks_like_an_accelerometer_bias():

@@ -258,17 +258,28 @@ class ConsistencyRemedies:
         # states the model holds constant (zero process noise) get some: the model
         # error may be theirs (a bias that varies, a constant one larger than its prior)
         floor = (factor - 1.0) * np.diag(self.kf.P) / INFLATION_SPAN
-        self.Qc = np.where(self._held, np.maximum(self.Qc, floor),
-                           np.minimum(self.Qc * factor, self._Qc0 * 1e4))
-        if self.adaptive:
-            self.kf.Q = self.kf.Q * factor
+        self._set_Qc(np.where(self._held, np.maximum(self.Qc, floor),
+                              np.minimum(self.Qc * factor, self._Qc0 * 1e4)))
 
     def relax(self):
-        """Halve the process noise raised by :meth:`inflate` back towards the model's.
+        """Halve the process noise raised by :meth:`inflate` back towards the model's."""
+        self._set_Qc(np.where(self._held, 0.5 * self.Qc, np.maximum(0.5 * self.Qc, self._Qc0)))
 
-        (An adaptive filter's own Q estimate is left to its estimator.)
+    def _set_Qc(self, Qc):
+        """Set the process noise densities ``Qc`` (n,); an adaptive filter's Q follows them.
+
+        A filter that estimates Q (``own_Q``) keeps its own (it starts from ``diag(Qc) *
+        1 s``): it gets the change ``diag(Qc_new - Qc_old) * 1 s`` on top of its estimate,
+        so an inflation is taken back by :meth:`relax` as with the other filters. (Before,
+        an ASCKF's Q was multiplied by the factor and the estimator's copy overwrote it at
+        the next epoch: the inflation never reached it, ``filters/asckf.py``.)
         """
-        self.Qc = np.where(self._held, 0.5 * self.Qc, np.maximum(0.5 * self.Qc, self._Qc0))
+        Qc = np.asarray(Qc, dtype=float)
+        if self.own_Q:
+            Q = self.kf.Q.copy()
+            Q[np.diag_indices(len(Q))] += Qc - self.Qc
+            self.kf.Q = Q
+        self.Qc = Qc
 
     def inflate_noise(self, factors):
         """Inflate measurement rows' noise variances: ``factors`` row -> factor.
@@ -336,6 +347,12 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
         self.use_velocity = bool(use_velocity)
         self.adaptive = bool(adaptive)
         self.use_reported_cov = bool(use_reported_cov) and not self.adaptive
+        #: the filter estimates Q itself (Sage-Husa with ``adapt_q``); else the engine sets
+        #: ``diag(Qc) T`` each interval, as for every filter (an ASCKF that estimates R
+        #: only kept ``diag(Qc) * 1 s`` per epoch whatever the interval: at 5 Hz RTK five
+        #: times the model's noise, heading 1-sigma 0.70 deg against kf's 0.46)
+        self.own_Q = self.adaptive and bool(getattr(getattr(kf, 'noise', None), 'adapt_q',
+                                                    False))
         self.sums = IntervalSums(attitude_sums)
         self.n_updates = 0
         self.n_predict_only = 0
@@ -437,25 +454,33 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
         ``diag(Qc) T`` plus a dropped force's velocity noise
         (:meth:`~.force.ForceModel._force_noise`) and the rotation-proportional noise of the
         gyro scale factors and misalignment (:mod:`.rotation_error`) and the accelerometer's
-        force-proportional velocity noise (:mod:`.force_error`). An adaptive filter
-        keeps its own Q; those two parts are lent to it for the step and taken back after
-        it (:meth:`_return_process_noise`).
+        force-proportional velocity noise (:mod:`.force_error`). A filter that estimates
+        Q (``own_Q``) keeps its own; the parts beyond ``diag(Qc) T`` are lent to it for the
+        step (``kf.Q_lent`` where it has one, never estimated into its Q) and taken back
+        after it (:meth:`_return_process_noise`).
         """
         T = max(self.sums.T, 1e-3)
         E = self._force_noise(T)
         for E_more in (self._rotation_noise(T), self._force_error_noise(T)):
             if E_more is not None:
                 E = E_more if E is None else E + E_more
-        if not self.adaptive:
+        if not self.own_Q:
             self.kf.Q = np.diag(self.Qc * T) + (0.0 if E is None else E)
             return None
         if E is not None:
-            self.kf.Q = self.kf.Q + E
+            if hasattr(self.kf, 'Q_lent'):      # used with Q, never estimated into it
+                self.kf.Q_lent = E
+            else:
+                self.kf.Q = self.kf.Q + E
         return E
 
     def _return_process_noise(self, lent):
         """Take back the process noise :meth:`_set_process_noise` lent (None: nothing)."""
-        if lent is not None:
+        if lent is None:
+            return
+        if hasattr(self.kf, 'Q_lent'):
+            self.kf.Q_lent = None
+        else:
             self.kf.Q = self.kf.Q - lent
 
     def _restart_interval(self):

@@ -129,7 +129,8 @@ class MovingBaseAlignment(GnssAidedEngine):
         are seed 000's 10 plus the accelerometer bias (module docstring).
     Qc : ndarray (10,) or (13,)
         Continuous-time noise densities (per second); the discrete Q of an
-        interval T is ``diag(Qc) T``. The adaptive filter starts from ``Qc * 1 s``.
+        interval T is ``diag(Qc) T``, for the ASCKF too unless it estimates Q
+        (``adapt_q``), when it starts from ``Qc * 1 s``.
     accel_bias : float or None
         Accelerometer bias 1-sigma (m/s^2) for a 10-state ``P0``/``Qc``: the
         accelerometer bias states are appended (sigma at least :data:`ACCEL_BIAS_FLOOR`)

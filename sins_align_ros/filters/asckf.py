@@ -86,7 +86,9 @@ class ASCKF:
         n = len(x0)
         self.x = np.array(x0, dtype=float)
         self.S = chol_lower(np.asarray(P0, dtype=float))
-        self.Q = np.array(Q, dtype=float)
+        #: the Q/R estimator; it holds Q (:attr:`Q`)
+        self.noise = SageHusa(np.array(Q, dtype=float), R, b=b, gate=gate, adapt_q=adapt_q,
+                              r_ceiling=r_ceiling, r_when_identifiable=r_when_identifiable)
         self.R = np.array(R, dtype=float)
         self.fading = fading
         self.adaptive = adaptive
@@ -104,15 +106,40 @@ class ASCKF:
         self.white = True
         #: one strong-tracking state per measurement subset (its V_k has that dimension)
         self._tracking = {}
-        self.noise = SageHusa(self.Q, self.R, b=b, gate=gate, adapt_q=adapt_q,
-                              r_ceiling=r_ceiling, r_when_identifiable=r_when_identifiable)
         self.lam = np.ones(n)
         #: (len(R),) or None: known variances the caller lends to the measurement noise
         #: for its next updates (a lever arm's share of the attitude uncertainty,
         #: ``align/aided.py``); used with R, never estimated into it (:meth:`_R_used`)
         self.R_lent = None
+        #: (n, n) or None: known process noise the caller lends for its next prediction
+        #: (the gyro scale-factor/misalignment noise of a turn, the accelerometer's
+        #: force-proportional noise, a dropped force: ``align/aided.py``); used with Q,
+        #: never estimated into it (:meth:`_Q_used`)
+        self.Q_lent = None
         self.last = None
         self.rejected = False
+
+    @property
+    def Q(self):
+        """Process noise estimate (n, n): the estimator's (:class:`SageHusa`)."""
+        return self.noise.Q
+
+    @Q.setter
+    def Q(self, value):
+        """Set the process noise (n, n); the estimator continues from it.
+
+        One copy: before, the filter's ``Q`` and the estimator's were two arrays, and
+        the estimator's (the initial Q, ``adapt_q`` off) overwrote the filter's at every
+        update, so what a caller put into ``Q`` (the engine's turn-rate noise lent per
+        interval, the consistency monitor's inflation) was lost at the next update, and
+        the engine's taking back of its loan then drove Q's velocity rows negative
+        (car with RTK, MEMS IMU: -3.3e-6 m^2/s^2 after 2100 epochs).
+        """
+        self.noise.Q = np.array(value, dtype=float)
+
+    def _Q_used(self):
+        """Process noise (n, n) of the next prediction: the estimate plus what is lent."""
+        return self.Q if self.Q_lent is None else self.Q + self.Q_lent
 
     @property
     def P(self):
@@ -184,7 +211,7 @@ class ASCKF:
             self.faded = False
             return S_l
         P_l = S_l @ S_l.T
-        self.lam = tracking.current_factors(P_l, probe.Pxz, self.Q, self._R_used(idx))
+        self.lam = tracking.current_factors(P_l, probe.Pxz, self._Q_used(), self._R_used(idx))
         if self.var_max is not None:
             cap = np.maximum(self.var_max / np.clip(np.diag(P_l), 1e-300, None), 1.0)
             self.lam = np.minimum(self.lam, cap)
@@ -197,7 +224,7 @@ class ASCKF:
 
     def predict(self, fx):
         """Time update only (no measurement this epoch): eq. 23-27 without fading."""
-        self.x, self.S, _ = srckf_predict(self.x, self.S, fx, sqrt_psd(self.Q))
+        self.x, self.S, _ = srckf_predict(self.x, self.S, fx, sqrt_psd(self._Q_used()))
 
     def step(self, fx, z, hx, idx=None, max_nis=None):
         """One prediction with ``fx`` and one update with measurement ``z`` of ``hx``.
@@ -213,7 +240,7 @@ class ASCKF:
         Returns the :class:`~sins_align_ros.filters.cubature.CubatureUpdate` of the update.
         """
         idx = measurement_rows(idx, len(self.R))
-        SQ, SR = sqrt_psd(self.Q), sqrt_psd(self._R_used(idx))
+        SQ, SR = sqrt_psd(self._Q_used()), sqrt_psd(self._R_used(idx))
         xp, S_l, chi_star = srckf_predict(self.x, self.S, fx, SQ)               # eq. 23-27
         self.faded, self.white = False, True
         self.rejected = False
