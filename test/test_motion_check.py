@@ -27,7 +27,7 @@ class Engine:
     """The least of an aided engine the check uses: 13 noise densities, the slices, a recorder."""
 
     i_phi, i_v = slice(4, 7), slice(0, 2)
-    adaptive = False
+    own_Q = False
 
     def __init__(self, noise):
         self.Qc = np.r_[[noise.accel_vrw ** 2] * 2, [0.0] * 2, [noise.gyro_arw ** 2] * 3,

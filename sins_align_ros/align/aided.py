@@ -456,8 +456,8 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
         gyro scale factors and misalignment (:mod:`.rotation_error`) and the accelerometer's
         force-proportional velocity noise (:mod:`.force_error`). A filter that estimates
         Q (``own_Q``) keeps its own; the parts beyond ``diag(Qc) T`` are lent to it for the
-        step (``kf.Q_lent`` where it has one, never estimated into its Q) and taken back
-        after it (:meth:`_return_process_noise`).
+        step (``kf.Q_lent``: the ASCKF's, the one filter that estimates Q; never estimated
+        into its Q) and taken back after it (:meth:`_return_process_noise`).
         """
         T = max(self.sums.T, 1e-3)
         E = self._force_noise(T)
@@ -468,20 +468,13 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
             self.kf.Q = np.diag(self.Qc * T) + (0.0 if E is None else E)
             return None
         if E is not None:
-            if hasattr(self.kf, 'Q_lent'):      # used with Q, never estimated into it
-                self.kf.Q_lent = E
-            else:
-                self.kf.Q = self.kf.Q + E
+            self.kf.Q_lent = E      # used with Q, never estimated into it
         return E
 
     def _return_process_noise(self, lent):
         """Take back the process noise :meth:`_set_process_noise` lent (None: nothing)."""
-        if lent is None:
-            return
-        if hasattr(self.kf, 'Q_lent'):
+        if lent is not None:
             self.kf.Q_lent = None
-        else:
-            self.kf.Q = self.kf.Q - lent
 
     def _restart_interval(self):
         self._interval_ended(self.sums.T)

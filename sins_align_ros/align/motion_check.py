@@ -77,7 +77,7 @@ def widen_process_noise(engine, rows, factor, floor):
         q = np.array(getattr(engine, name), dtype=float)
         q[k] = np.maximum(q[k] * factor, floor)
         setattr(engine, name, q)
-    if getattr(engine, 'own_Q', engine.adaptive):
+    if engine.own_Q:
         s = np.ones(len(engine.Qc))
         s[k] = math.sqrt(factor)
         engine.kf.Q = engine.kf.Q * np.outer(s, s)

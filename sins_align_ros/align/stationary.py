@@ -95,10 +95,9 @@ class StationaryEngine:
         self.x = np.zeros(m.n)
         zv = np.broadcast_to(np.asarray(zero_velocity_sigma, dtype=float), (3,))
         #: the initial velocity's 1-sigma per measured axis (m/s): the base's own velocity
-        #: at rest, the zero-velocity sigma (a heaving ship is anywhere in its heave's
-        #: velocity when the stage starts;
-        #: a 0.01 m/s claim there held the offset for tens of seconds, NIS 9 per epoch on
-        #: ship_sway's heave), never below :data:`V0_SIGMA`
+        #: at rest, the zero-velocity sigma, never below :data:`V0_SIGMA` (a heaving ship is
+        #: anywhere in its heave's velocity when the stage starts; a 0.01 m/s claim there
+        #: held the offset for tens of seconds, NIS 9 per epoch on ship_sway's heave)
         self.v0_sigma = np.maximum(V0_SIGMA, zv[m.meas])
         self.P = m.P0(self.v0_sigma, sigma_phi, noise)
         self.H = m.H()
