@@ -54,6 +54,8 @@ class EpochNoise:
         filter's P setter keeps its own form (a square-root factor is refactored).
         """
         gm = self._markov()
+        if gm.from_fixes:
+            gm.assume(self._fix_sigma_h(fix))
         dt = gm.epoch(fix.t)
         var = 0.0 if self._markov_in_R() else gm.process_var(dt)
         if var <= 0.0:
@@ -62,6 +64,18 @@ class EpochNoise:
         P = self.kf.P.copy()
         P[k, k] += var
         self.kf.P = P
+
+    def _fix_sigma_h(self, fix):
+        """Horizontal position 1-sigma (m) of ``fix``: reported where used, else configured."""
+        if self.use_reported_cov and fix.pos_var is not None:
+            return float(np.sqrt(np.max(np.asarray(fix.pos_var, dtype=float)[:2])))
+        k = position_rows(self.MEAS_ENU)[:2]
+        return float(np.sqrt(np.max(self.R_nominal.diagonal()[k])))
+
+    @property
+    def measures_position(self):
+        """Tell whether the engine's measurement has position rows."""
+        return len(position_rows(self.MEAS_ENU)) > 0
 
     def _set_epoch_noise(self, fix):
         """Set ``kf.R`` for ``fix`` where the engine sets it (never for an adaptive filter).

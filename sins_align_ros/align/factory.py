@@ -132,6 +132,14 @@ def make_engine(cfg, noise, start, has_velocity, heading_known=True):
     eng.set_rotation_error(cfg['gyro_scale_factor_ppm'] * 1e-6,
                            cfg['gyro_misalignment_ppm'] * 1e-6)
     eng.set_gnss_markov(cfg['gnss_position_markov_sigma_m'], cfg['gnss_position_markov_tau_s'])
+    if (not has_velocity and cfg['gnss_position_only_markov']
+            and cfg['gnss_position_markov_sigma_m'] <= 0.0 and eng.measures_position):
+        eng.gnss_markov.from_fixes = True
+        warnings.append(
+            'position-only GNSS: each fix\'s horizontal position sigma is taken as a '
+            'Gauss-Markov error of %.0f s as well (a standalone receiver\'s error is mostly '
+            'correlated over tens of seconds, and the heading comes from position '
+            'differences; gnss_position_only_markov)' % cfg['gnss_position_markov_tau_s'])
     eng.set_force_error(cfg['accel_scale_factor_ppm'] * 1e-6,
                         cfg['accel_misalignment_ppm'] * 1e-6)
     if not heading_known:

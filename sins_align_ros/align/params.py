@@ -221,6 +221,12 @@ ALIGNMENT_PARAMS = (
           'widened and said)', 0.0, 100.0),
     Param('gnss_position_markov_tau_s', 60.0, 'correlation time of that Gauss-Markov error '
           '(also when the innovations switch it on), s', 1.0, 1e5),
+    Param('gnss_position_only_markov', True, 'a position-only receiver (no gnss/vel when '
+          'the fine stage starts) with gnss_position_markov_sigma_m 0: take each fix\'s '
+          'horizontal position sigma (reported, else gnss_pos_sigma_m) as a Gauss-Markov '
+          'error of gnss_position_markov_tau_s too, since a standalone receiver\'s error is '
+          'mostly correlated over tens of seconds and its heading comes from position '
+          'differences (said with a WARN); false: white until the innovations show otherwise'),
     Param('use_gnss_velocity', True, 'measure gnss/vel in the moving-base filters as well '
           'as the position (when gnss/vel messages arrive)'),
     Param('use_reported_gnss_covariance', True, 'take the east/north GNSS position and '
