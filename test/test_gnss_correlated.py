@@ -123,7 +123,7 @@ def test_the_process_form_adds_the_random_walk_to_the_measured_position_states()
 
 
 def test_a_position_only_receiver_is_assumed_correlated_at_each_fixs_own_sigma():
-    """``from_fixes``: the GM sigma is the fix's reported horizontal sigma (else R's), never less."""
+    """``from_fixes``: the GM sigma is the fix's reported horizontal sigma (else R's), at least."""
     eng = _engine('measurement')
     eng.set_gnss_markov(0.0, 60.0)
     eng.gnss_markov.from_fixes = True
