@@ -132,6 +132,7 @@ def make_engine(cfg, noise, start, has_velocity, heading_known=True):
     eng.set_rotation_error(cfg['gyro_scale_factor_ppm'] * 1e-6,
                            cfg['gyro_misalignment_ppm'] * 1e-6)
     eng.set_gnss_markov(cfg['gnss_position_markov_sigma_m'], cfg['gnss_position_markov_tau_s'])
+    eng.velocity_jitter_var = cfg['imu_velocity_jitter_mps'] ** 2
     eng.set_force_error(cfg['accel_scale_factor_ppm'] * 1e-6,
                         cfg['accel_misalignment_ppm'] * 1e-6)
     if not heading_known:

@@ -221,6 +221,11 @@ ALIGNMENT_PARAMS = (
           'widened and said)', 0.0, 100.0),
     Param('gnss_position_markov_tau_s', 60.0, 'correlation time of that Gauss-Markov error '
           '(also when the innovations switch it on), s', 1.0, 1e5),
+    Param('imu_velocity_jitter_mps', 0.0, 'the IMU\'s velocity error from vibration, bounded '
+          '(it does not accumulate), 1 sigma per axis, m/s: the aided filters add its variance '
+          'to the GNSS velocity noise; the self-check measures it (widened where it is at '
+          'least the GNSS velocity sigma; a skid-steer robot on asphalt: about 0.05)',
+          0.0, 10.0),
     Param('use_gnss_velocity', True, 'measure gnss/vel in the moving-base filters as well '
           'as the position (when gnss/vel messages arrive)'),
     Param('use_reported_gnss_covariance', True, 'take the east/north GNSS position and '
