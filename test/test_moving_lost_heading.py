@@ -2,7 +2,8 @@
 
 The coarse stage of a slow robot (no track, a gyro that cannot gyrocompass) hands over a
 heading sigma beyond the cubature cap (``aided.HEADING_PRIOR_MAX``). The engine then keeps
-the horizontal force out of its model (its velocity error is process noise of an unknown
+(``hold_lost_heading``: the pipeline's while the course aid runs) the horizontal force out
+of its model (its velocity error is process noise of an unknown
 angle) until a straight leg's course or an external heading is taken
 (``ExternalHeading.update_heading``), at most ``LOST_WAIT_S``, as the navigation filters
 do (test_navigation.py); the ASCKF otherwise claimed 8 deg about a heading 48 deg off on
@@ -26,7 +27,7 @@ LAT = 0.6
 K_UP = I_PHI.stop - 1
 
 
-def _engine(heading_sigma):
+def _engine(heading_sigma, hold=True):
     """An ASCKF at 1 m/s east, 13 states, GNSS position and velocity (RTK-like R).
 
     Tilt 0.1 deg and accelerometer bias 1 mg: the turn's 0.5 m/s^2 is beyond
@@ -38,7 +39,7 @@ def _engine(heading_sigma):
     R = np.diag([4e-4, 4e-4, 4e-4, 4e-4])
     return MovingBaseAlignment(np.eye(3), np.array([1.0, 0.0, 0.0]), LAT, 0.0, 0.0, P0, Qc, R,
                                use_velocity=True, fading=False, adaptive=False,
-                               accel_bias=1000.0 * UG)
+                               accel_bias=1000.0 * UG, hold_lost_heading=hold)
 
 
 def _turn(eng, steps=20):
@@ -67,8 +68,10 @@ def test_an_unknown_heading_is_lost_and_takes_no_information_from_the_turns():
     axis, and a GNSS velocity update leaves the heading variance where the prediction put
     it (the vertical force carries no heading into the velocity: round-off of the
     square-root update, whose factor's 13 rows span the variances of P0, 0.62 rad^2 to
-    9.4e-7 (rad/s)^2; 2.3e-11 here, against the 6 % one epoch of the turn's force gives). A heading of 30 deg (under the cap) is not lost: the same
-    turn gives the model its force and the update shrinks the heading variance."""
+    9.4e-7 (rad/s)^2; 2.3e-11 here, against the 6 % one epoch of the turn's force gives).
+    A heading of 30 deg (under the cap) is not lost, nor one the engine is not told to hold
+    (the seed's own acquisition, the engine alone): the same turn gives the model its force
+    and the update shrinks the heading variance."""
     eng = _engine(90.0 * DEG)
     assert eng.heading_prior_var is not None and eng.heading_lost
     assert eng.kf.P[K_UP, K_UP] == pytest.approx(HEADING_PRIOR_MAX ** 2, rel=1e-12)
@@ -82,7 +85,7 @@ def test_an_unknown_heading_is_lost_and_takes_no_information_from_the_turns():
     assert_roundoff(_shrink(eng), 1.0, n_ops=len(d), scale=1.0, cond=d.max() / d.min(),
                     what='heading variance ratio of an update with the heading lost')
     known = _engine(30.0 * DEG)
-    assert not known.heading_lost
+    assert not known.heading_lost and not _engine(90.0 * DEG, hold=False).heading_lost
     _turn(known)
     assert _shrink(known) < 1.0 - 1e-3          # measurably
 
