@@ -13,10 +13,11 @@ from sins_align_ros.align.motion_check import TURN_RATE, WINDOW_S, MotionCheck
 from sins_align_ros.align.rotation_error import COHERENCE_FACTOR
 from sins_align_ros.align.self_check import (ACCEL_SCALE_BY_GYRO_NOISE, ACCEL_VRW_BY_GYRO_NOISE,
                                              NOISE_RATIO, SCALE_BY_GYRO_NOISE,
-                                             difference_density)
+                                             difference_density, velocity_jitter)
 from sins_align_ros.eval.integrity import run_integrity
 from sins_align_ros.eval.run import run_scenario
 from sins_align_ros.models.stationary import NoiseSpec
+from sins_align_ros.sim.imu import ImuErrors, ImuSpec
 from sins_align_ros.sim.presets import scenario, starting_still
 from sins_align_ros.units import DPSH, UG
 
@@ -28,12 +29,17 @@ class Engine:
 
     i_phi, i_v = slice(4, 7), slice(0, 2)
     own_Q = False
+    velocity_jitter_var = 0.0
 
-    def __init__(self, noise):
+    def __init__(self, noise, vel_var=None):
         self.Qc = np.r_[[noise.accel_vrw ** 2] * 2, [0.0] * 2, [noise.gyro_arw ** 2] * 3,
                         [1e-12] * 3, [0.0] * 3]
         self._Qc0 = self.Qc.copy()
         self.rotation = self.force = None
+        self.vel_var = vel_var
+
+    def receiver_velocity_var(self):
+        return self.vel_var
 
     def set_rotation_error(self, scale, misalignment):
         self.rotation = (scale, misalignment)
@@ -179,3 +185,30 @@ def test_a_ship_underway_keeps_its_model():
     assert chk.n_windows >= 5 and chk.widened == {}
     assert run.pipeline.status()['motion_check_gyro_noise_dpsh'] < NOISE_RATIO * (
         scenario('ship_underway').imu.gyro_arw_dpsh)
+
+
+def test_a_vibrating_chassis_raises_the_velocity_jitter_against_rtk_only():
+    """The robot's vibration (1.5 m/s^2 per sample at 30 Hz, 0.05 s: 0.051 m/s of bounded
+    velocity) in a window: raised to the window's jitter against an RTK receiver's 0.02 m/s
+    velocity noise (said), not against a consumer receiver's 0.1 nor without velocity rows;
+    never narrowed (a second window leaves it)."""
+    n = int(WINDOW_S * 30.0) + 30
+    errors = ImuErrors(ImuSpec(vibration_accel_mps2=1.5, vibration_tau_s=0.05),
+                       np.random.default_rng(3))
+    dt = 1.0 / 30.0
+    dth, dv = errors.apply(np.zeros((n, 3)), np.tile([0.0, 0.0, 9.8 * dt], (n, 1)), dt)
+    t = dt * np.arange(1, n + 1)
+    j = velocity_jitter(dth, dv, np.full(n, dt))
+    for vel_var, raised in ((0.02 ** 2, True), (0.1 ** 2, False), (None, False)):
+        chk, eng = MotionCheck(MODEL), Engine(MODEL, vel_var)
+        chk.push(t, dth, dv, np.full(n, dt))
+        chk.epoch(t[-1], eng)
+        assert (eng.velocity_jitter_var > 0.0) == raised
+        if raised:
+            # the window is the samples up to the epoch: all of them here
+            assert eng.velocity_jitter_var == pytest.approx(j * j, rel=1e-12)
+            assert chk.widened['imu_velocity_jitter_mps'] == pytest.approx(j, rel=1e-12)
+            assert any('imu_velocity_jitter_mps widened' in x for x in chk.findings)
+            chk.push(t + t[-1], dth, dv, np.full(n, dt))
+            chk.epoch(2.0 * t[-1], eng)
+            assert eng.velocity_jitter_var == pytest.approx(j * j, rel=1e-12)

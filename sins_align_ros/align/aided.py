@@ -31,7 +31,7 @@ from ..nav import kernels
 from ..nav.mechanization import MechanizationOptions, Strapdown
 from ..units import DPH, UG
 from .epoch_noise import EpochNoise
-from .force import ForceModel
+from .force import ANGLE_UNKNOWN_VAR, ForceModel  # noqa: F401  (re-exported)
 from .force_error import ForceError
 from .gnss_gate import FilterDiverged
 from .heading_update import ExternalHeading
@@ -44,8 +44,6 @@ MAX_PREDICT = 2.0
 STRETCH = 4096
 #: what the interval-sum kernel is given for ``C_sum`` when it keeps none (not written)
 _NO_C_SUM = np.zeros((3, 3))
-#: variance of an angle known to be anywhere in (-pi, pi] (uniform), rad^2
-ANGLE_UNKNOWN_VAR = math.pi ** 2 / 3.0
 #: seconds over which an inflation's process-noise floor would add the state's variance
 INFLATION_SPAN = 100.0
 #: largest inflation of a measurement noise variance by the consistency monitor
@@ -605,6 +603,7 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
              'Q_diag': [float(v) for v in np.diag(kf.Q)],
              'R_diag': [float(v) for v in np.diag(kf.R)],
              'R_scale': [float(v) for v in self.R_scale],
+             'velocity_jitter_mps': math.sqrt(self.velocity_jitter_var),
              'gyro_drift_dph': [float(v) for v in kf.x[self.i_eps] / DPH]}
         s.update(self.gate.status())
         if self.heading_gate is not None:

@@ -4,9 +4,11 @@ A mixin of :class:`~.aided.GnssAidedEngine`. The filters that take R from the en
 get, each epoch, the nominal R with the receiver's reported variances where they are
 used, the consistency monitor's factors (``R_scale``) and a lever arm's variance
 (``GnssFix.arm_var``: what the attitude's uncertainty leaves in moving the fix from the
-antenna to the IMU, :mod:`.installation`). A Sage-Husa filter, whose R is its own
-estimate, is lent the arm's part for the epoch instead; the variational-Bayes filters
-learn it in their posterior.
+antenna to the IMU, :mod:`.installation`). The velocity rows get the IMU's velocity jitter too
+(``velocity_jitter_var``: a vibrating chassis's bounded velocity error, which the
+mechanized velocity carries at every epoch; :mod:`.self_check` measures it). A Sage-Husa
+filter, whose R is its own estimate, is lent the arm's and the jitter's part for the
+epoch instead; the variational-Bayes filters learn them in their posterior.
 
 The receiver's time-correlated position error (:mod:`.gnss_markov`) is taken here too,
 for every aided filter: by default as a white-equivalent share of each position row's R
@@ -28,6 +30,34 @@ class EpochNoise:
 
     #: the receiver's Gauss-Markov position error the engine assumes (:mod:`.gnss_markov`)
     gnss_markov = None
+    #: variance ((m/s)^2) per axis of the IMU's velocity jitter (``imu_velocity_jitter_mps``:
+    #: a vibrating chassis's bounded velocity error, :mod:`.self_check`), added to the noise
+    #: of the velocity rows
+    velocity_jitter_var = 0.0
+
+    def _velocity_rows(self):
+        """Rows of R (indices) that measure a velocity; none without GNSS velocity."""
+        if not self.use_velocity:
+            return np.zeros(0, dtype=int)
+        return np.flatnonzero(self.MEAS_ENU[:len(self.R_nominal)] >= 3)
+
+    def receiver_velocity_var(self):
+        """Return the GNSS velocity noise variance ((m/s)^2) the filter takes, jitter apart.
+
+        None without velocity rows. The smallest of the velocity rows': the adaptive
+        filter's estimate, the last epoch's R less the jitter where the engine sets R (the
+        reported variances, the consistency monitor's factors), else the nominal R.
+        """
+        k = self._velocity_rows()
+        if not len(k):
+            return None
+        R = self.R_nominal if getattr(self.kf, 'R', None) is None else self.kf.R
+        if len(R) != len(self.R_nominal):
+            R = self.R_nominal
+        var = float(np.min(R.diagonal()[k]))
+        if self.sets_R or self.use_reported_cov:
+            var -= self.velocity_jitter_var     # the last epoch's R has it (_set_epoch_noise)
+        return max(var, 0.0)
 
     def set_gnss_markov(self, sigma, tau, method='measurement'):
         """Assume a Gauss-Markov position error of ``sigma`` m per axis, ``tau`` s.
@@ -98,6 +128,9 @@ class EpochNoise:
             R[k, k] += extra
         if fix.arm_var is not None:
             R[np.diag_indices(len(R))] += fix.arm_var[self.MEAS_ENU]
+        if self.velocity_jitter_var > 0.0:
+            k = self._velocity_rows()
+            R[k, k] += self.velocity_jitter_var
         self.kf.R = R
 
     def _take_reported(self, R, fix):
@@ -136,21 +169,31 @@ class EpochNoise:
         return old, new, vel
 
     def _lend_arm_noise(self, fix):
-        """Lend a lever arm's variance to an adaptive filter's R for one epoch (or None).
+        """Lend a lever arm's and the velocity jitter's variance to an adaptive filter's R.
 
-        The filters that set R take ``fix.arm_var`` into it (:meth:`_set_epoch_noise`); a
-        Sage-Husa filter's R is its estimate, so the known part is lent (``kf.R_lent``):
+        For one epoch; returns what was lent (len(R),) or None. The filters that set R take
+        ``fix.arm_var`` and :attr:`velocity_jitter_var` into it (:meth:`_set_epoch_noise`);
+        a Sage-Husa filter's R is its estimate, so the known part is lent (``kf.R_lent``):
         the update uses it on top of the estimate, the estimator takes it out of the
         innovations and does not count it as the receiver's noise, and
-        :meth:`_return_arm_noise` ends the loan. (The variational-Bayes filters' R is their
-        posterior; they learn the arm's noise.)
+        :meth:`_return_arm_noise` ends the loan. The estimator learns R only on epochs
+        where R dominates the innovation covariance (``filters/adaptive.py``): a vibrating
+        robot's velocity jitter above its RTK velocity noise (0.05 against 0.02 m/s,
+        robot:rtk) was never learnt, the consistency monitor inflated the state instead
+        and the ASCKF's tilt went 1-5 deg off under a 1-deg sigma (10 of 10 runs told the
+        right model silent-wrong). (The variational-Bayes filters' R is their posterior;
+        they learn both.)
         """
-        if fix.arm_var is None or self.sets_R or self.use_reported_cov or getattr(
-                self.kf, 'estimates_R', False):
+        if self.sets_R or self.use_reported_cov or getattr(self.kf, 'estimates_R', False):
             return None
-        arm = fix.arm_var[self.MEAS_ENU]
-        self.kf.R_lent = arm
-        return arm
+        if fix.arm_var is None and not self.velocity_jitter_var > 0.0:
+            return None
+        lent = np.zeros(len(self.R_nominal))
+        if fix.arm_var is not None:
+            lent += fix.arm_var[self.MEAS_ENU[:len(lent)]]
+        lent[self._velocity_rows()] += self.velocity_jitter_var
+        self.kf.R_lent = lent
+        return lent
 
     def _return_arm_noise(self):
         """End the loan of :meth:`_lend_arm_noise`."""

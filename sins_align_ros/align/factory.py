@@ -127,7 +127,7 @@ def make_engine(cfg, noise, start, has_velocity, heading_known=True):
             square_root=asckf, fading=asckf and cfg['asckf_fading'],
             adaptive=asckf and cfg['asckf_adaptive'], adapt_q=cfg['asckf_adapt_q'],
             b=cfg['asckf_forgetting'], use_reported_cov=cfg['use_reported_gnss_covariance'],
-            **gate)
+            hold_lost_heading=cfg['course_heading'], **gate)
     eng.heading_gate = _heading_gate(cfg)
     eng.set_rotation_error(cfg['gyro_scale_factor_ppm'] * 1e-6,
                            cfg['gyro_misalignment_ppm'] * 1e-6)
@@ -140,6 +140,7 @@ def make_engine(cfg, noise, start, has_velocity, heading_known=True):
             'Gauss-Markov error of %.0f s as well (a standalone receiver\'s error is mostly '
             'correlated over tens of seconds, and the heading comes from position '
             'differences; gnss_position_only_markov)' % cfg['gnss_position_markov_tau_s'])
+    eng.velocity_jitter_var = cfg['imu_velocity_jitter_mps'] ** 2
     eng.set_force_error(cfg['accel_scale_factor_ppm'] * 1e-6,
                         cfg['accel_misalignment_ppm'] * 1e-6)
     if not heading_known:

@@ -41,12 +41,19 @@ the interval (times ``T^2``), so the tilt does not take it (a USV in severe sea 
 MEMS IMU, 40 deg off in heading at the start of fine alignment, otherwise had its tilt
 5 sigma off for a few seconds).
 """
+import math
+
 import numpy as np
 
 from ..nav import earth
 
 #: the horizontal specific force enters the error model only beyond this many sigma
 FORCE_SIGNIFICANCE = 5.0
+#: variance of an angle known to be anywhere in (-pi, pi] (uniform), rad^2
+ANGLE_UNKNOWN_VAR = math.pi ** 2 / 3.0
+#: seconds a lost heading waits for a nonlinear acquisition with the horizontal force out
+#: (:meth:`ForceModel._drop_horizontal_force`; :mod:`.navigation`, :mod:`.moving`)
+LOST_WAIT_S = 60.0
 
 
 def model_force(f_n, var_tilt, var_heading, var_bias, g):
@@ -95,6 +102,25 @@ class ForceModel:
             f_n, max(var_phi[0], var_phi[1]), min(var_phi[2], max_heading_var), var_bias,
             earth.gravity(lat, h))
         return f
+
+    def _drop_horizontal_force(self, f_n, lat, h, max_heading_var=np.inf):
+        """Return the force (3,) the model uses while the heading is lost: the vertical alone.
+
+        ``f_n`` (3,) the interval's mean specific force (ENU, m/s^2). A horizontal part
+        beyond :data:`FORCE_SIGNIFICANCE` sigma of the filter's own tilt and
+        accelerometer-bias errors is a real force (a turn, a braking): its velocity error,
+        ``(C(psi) - I) f_h`` for a heading error ``psi`` anywhere in the circle, goes to the
+        velocity process noise as an unknown angle's (``ANGLE_UNKNOWN_VAR |f_h|^2`` per
+        axis, :meth:`_force_noise`) instead of into the heading and tilt rows (the lost
+        heading of :mod:`.navigation` and :mod:`.moving`). One within it is the filter's
+        own tilt error times g (a still base): dropped as :func:`model_force` drops it,
+        with the heading variance taken at most ``max_heading_var`` (rad^2).
+        """
+        f_model = self._model_force(f_n, lat, h, max_heading_var=max_heading_var)
+        f_n = np.asarray(f_n, dtype=float)
+        if f_model[0] != 0.0 or f_model[1] != 0.0:
+            self._unmodelled_acc_var = ANGLE_UNKNOWN_VAR * float(f_n[0] ** 2 + f_n[1] ** 2)
+        return np.array([0.0, 0.0, f_n[2]])
 
     def _force_noise(self, T):
         """Velocity process noise (n, n) of a force dropped over ``T`` s, or None.

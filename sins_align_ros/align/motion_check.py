@@ -18,6 +18,13 @@ checked as the coarse self-check checks a moving base, with its estimators:
   noise of the class the gyro noise shows (:data:`~.self_check.ACCEL_VRW_BY_GYRO_NOISE`,
   as the coarse check does: vibration above it averages out over a GNSS interval), raises
   the velocity process noise the same way.
+* **Velocity jitter** (a vibrating chassis's bounded velocity error,
+  :func:`~.self_check.velocity_jitter`): where a window's is at least
+  :data:`~.self_check.JITTER_COUNTED` times the GNSS velocity sigma the filter takes
+  (``engine.receiver_velocity_var``) and more than :data:`~.self_check.NOISE_RATIO` times
+  the jitter the engine has, the engine's ``velocity_jitter_var`` is raised to it (added to
+  the GNSS velocity noise, :mod:`.epoch_noise`): a robot that waited still through the
+  coarse window vibrates only once it drives.
 * **Turns and the grade**: a window whose rate reaches :data:`TURN_RATE` shows turns;
   the scale factors and axis misalignment of the class the gyro noise shows
   (:data:`~.self_check.SCALE_BY_GYRO_NOISE`: 2 % and 0.5 % for MEMS triads, none for the
@@ -43,8 +50,9 @@ from dataclasses import replace
 import numpy as np
 
 from ..units import DEG, DPSH, UG
-from .self_check import (ACCEL_SCALE_BY_GYRO_NOISE, ACCEL_VRW_BY_GYRO_NOISE, NOISE_RATIO,
-                         SCALE_BY_GYRO_NOISE, difference_density)
+from .self_check import (ACCEL_SCALE_BY_GYRO_NOISE, ACCEL_VRW_BY_GYRO_NOISE, JITTER_COUNTED,
+                         NOISE_RATIO, SCALE_BY_GYRO_NOISE, difference_density,
+                         velocity_jitter)
 
 #: per triad: the class table of its scale factor and misalignment (ppm), the engine's
 #: setter, and what a 1 % error does (the finding's example)
@@ -146,7 +154,30 @@ class MotionCheck:
         w, f = np.concatenate(self._w), np.concatenate(self._f)
         self._t, self._w, self._f, self._dt = [t[n:]], [w[n:]], [f[n:]], [dt[n:]]
         self._t0 = float(t[n - 1]) if n < len(t) else None
-        return self._judge(w[:n], f[:n], float(np.mean(dt[:n])), engine)
+        d = dt[:n, None]
+        jitter = self._jitter(w[:n] * d, f[:n] * d, dt[:n], engine)
+        return self._judge(w[:n], f[:n], float(np.mean(dt[:n])), engine) or jitter
+
+    def _jitter(self, dth, dv, dt, engine):
+        """Raise ``engine``'s velocity jitter to one window's where it counts; True if so.
+
+        ``dth``, ``dv`` (N, 3) the window's increments, ``dt`` (N,) its intervals (module
+        docstring).
+        """
+        j = velocity_jitter(dth, dv, dt)
+        var_v = engine.receiver_velocity_var()
+        if var_v is None or not math.isfinite(j):
+            return False
+        self.figures['motion_check_velocity_jitter_mps'] = j
+        old = math.sqrt(engine.velocity_jitter_var)
+        if not (j >= JITTER_COUNTED * math.sqrt(var_v) and j > NOISE_RATIO * old):
+            return False
+        engine.velocity_jitter_var = j * j
+        self._found('imu_velocity_jitter_mps', j,
+                    f'IMU velocity jitter {j:.3g} m/s in motion (vibration, bounded), '
+                    f'{old:.3g} in the model, GNSS velocity noise {math.sqrt(var_v):.3g} m/s: '
+                    'imu_velocity_jitter_mps widened in the running filter')
+        return True
 
     def _judge(self, w, f, dt, engine):
         """Widen ``engine`` from one window's rates ``w`` and specific forces ``f`` (N, 3)."""

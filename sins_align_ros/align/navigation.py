@@ -87,6 +87,9 @@ from ..nav.frames import (dcm_to_euler, euler_to_dcm, orthonormalize, reorthonor
                           rotvec_to_dcm, wrap_pi)
 from ..units import DPH, UG
 from .aided import ANGLE_UNKNOWN_VAR, GnssAidedEngine
+# seconds a lost heading waits for a nonlinear acquisition with the horizontal force out of
+# the model; then the linear model's own convergence is let try (module docstring)
+from .force import LOST_WAIT_S
 from .gnss_gate import GnssGate
 from .gyro_scale import GyroScaleStates
 from .rotation_error import COHERENCE_FACTOR
@@ -97,9 +100,6 @@ HEADING_LINEAR_MAX_DEG = 15.0
 #: heading 1-sigma (deg) above which the heading is published as unknown
 HEADING_CLAIM_MAX_DEG = 10.0
 HEADING_LINEAR_MAX_VAR = math.radians(HEADING_LINEAR_MAX_DEG) ** 2
-#: seconds a lost heading waits for a nonlinear acquisition with the horizontal force out
-#: of the model; then the linear model's own convergence is let try (module docstring)
-LOST_WAIT_S = 60.0
 HEADING_CLAIM_MAX_VAR = math.radians(HEADING_CLAIM_MAX_DEG) ** 2
 
 
@@ -269,7 +269,7 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
         m = self.mech
         self.kf.consider = None
         if self.heading_lost and self.lost_s < LOST_WAIT_S:
-            f_n = self._drop_horizontal_force(f_n, m.lat, m.h)
+            f_n = self._drop_horizontal_force(f_n, m.lat, m.h, HEADING_LINEAR_MAX_VAR)
             if self._unmodelled_acc_var > 0.0 and self._under_way:
                 self.kf.consider = self._tilt_considered()
         elif self.method != 'ukf':
@@ -287,25 +287,6 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
             args = (f_n, v_n, C, m.lat, m.h, self.tau_g, self.tau_a, T)
             return batched(lambda X: lc.propagate18(X, *args, substeps=sub, w_b=w_b))
         return linear(self._Phi)
-
-    def _drop_horizontal_force(self, f_n, lat, h):
-        """Return the force (3,) the model uses while the heading is lost: the vertical alone.
-
-        ``f_n`` (3,) the interval's mean specific force (ENU, m/s^2). A horizontal part
-        beyond :data:`~.force.FORCE_SIGNIFICANCE` sigma of the filter's own tilt and
-        accelerometer-bias errors is a real force (a turn, a braking): its velocity error,
-        ``(C(psi) - I) f_h`` for a heading error ``psi`` anywhere in the circle, goes to the
-        velocity process noise as an unknown angle's (``ANGLE_UNKNOWN_VAR |f_h|^2`` per
-        axis, :meth:`_force_noise`) instead of into the heading and tilt rows (module
-        docstring). One within it is the filter's own tilt error times g (a still base):
-        dropped as :func:`~.force.model_force` drops it, with the heading variance held at
-        the linear range (a UKF's lost heading grows beyond it; the true force is nil).
-        """
-        f_model = self._model_force(f_n, lat, h, max_heading_var=HEADING_LINEAR_MAX_VAR)
-        f_n = np.asarray(f_n, dtype=float)
-        if f_model[0] != 0.0 or f_model[1] != 0.0:
-            self._unmodelled_acc_var = ANGLE_UNKNOWN_VAR * float(f_n[0] ** 2 + f_n[1] ** 2)
-        return np.array([0.0, 0.0, f_n[2]])
 
     def _tilt_considered(self):
         """Return the consider mask (n,) of the tilt states (a lost heading, a real force).

@@ -227,6 +227,11 @@ ALIGNMENT_PARAMS = (
           'error of gnss_position_markov_tau_s too, since a standalone receiver\'s error is '
           'mostly correlated over tens of seconds and its heading comes from position '
           'differences (said with a WARN); false: white until the innovations show otherwise'),
+    Param('imu_velocity_jitter_mps', 0.0, 'the IMU\'s velocity error from vibration, bounded '
+          '(it does not accumulate), 1 sigma per axis, m/s: the aided filters add its variance '
+          'to the GNSS velocity noise; the self-check measures it (widened where it is at '
+          'least the GNSS velocity sigma; a skid-steer robot on asphalt: about 0.05)',
+          0.0, 10.0),
     Param('use_gnss_velocity', True, 'measure gnss/vel in the moving-base filters as well '
           'as the position (when gnss/vel messages arrive)'),
     Param('use_reported_gnss_covariance', True, 'take the east/north GNSS position and '

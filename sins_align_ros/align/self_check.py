@@ -51,6 +51,16 @@ the finding is reported:
   replaces the configured ``gnss_lever_arm_m`` (a mast-top antenna left untold otherwise
   sways at a metre per second in phase with the roll, and the filters read that as tilt),
   and the velocity noise counts what the fit leaves of it.
+* **Velocity jitter** (a vibrating chassis): vibration is bounded in velocity, so the
+  mechanized velocity carries it as an error that does not accumulate but is there at
+  every GNSS epoch (a skid-steer robot on asphalt, ``ROBOT_VIBRATION`` of the simulator:
+  0.05 m/s per axis, correlated over 0.05 s, white at a 5 Hz receiver). The specific
+  force integrated in the initial body frame, less its best quadratic over each
+  :data:`JITTER_CHUNK_S` seconds, shows it (:func:`velocity_jitter`; motion is smooth
+  over two seconds). Where it is at least :data:`JITTER_COUNTED` times the GNSS velocity
+  sigma the model takes, ``imu_velocity_jitter_mps`` is widened to it, and the aided
+  filters add its variance to the GNSS velocity noise (:mod:`.epoch_noise`; during the
+  fine stage :mod:`.motion_check` goes on measuring it).
 * **Base velocity at rest** (the zero-velocity measurement): the specific force
   integrated in the initial body frame, levelled, less its best quadratic over each
   :data:`VELOCITY_CHUNK_S` seconds, is the velocity the base really has (sway, heave,
@@ -159,6 +169,18 @@ ACCEL_SCALE_BY_GYRO_NOISE = ((0.003, (0.0, 0.0)), (0.15, (0.0, 0.0)), (0.6, (500
 ACCEL_VRW_BY_GYRO_NOISE = ((0.003, 10.0), (0.15, 80.0), (0.6, 200.0), (math.inf, 350.0))
 #: seconds of the pieces :func:`base_velocity_rms` fits a quadratic to
 VELOCITY_CHUNK_S = 10.0
+#: seconds of the pieces :func:`velocity_jitter` fits a quadratic to: some GNSS intervals
+#: long (what a filter cannot follow between its epochs), short against a manoeuvre. The
+#: quadratic takes part of a correlated jitter with it: 2 s read the simulated robot's
+#: 0.051 m/s (30 Hz, 0.05 s) as 0.047-0.050, 1 s as 0.044-0.047; the cars' turns and
+#: brakings leave 0.0003-0.0012 m/s in the median of the pieces (0.01-0.017 in their mean)
+JITTER_CHUNK_S = 2.0
+#: the velocity jitter counts (``imu_velocity_jitter_mps`` widened) where it is at least
+#: this times the GNSS velocity sigma the model takes: it then at least doubles the
+#: velocity noise variance, which the velocity innovations show (RTK's 0.02 m/s against a
+#: skid-steer robot's 0.05); a smaller share is within the noise the consistency monitor
+#: answers, and the cars' 0.001 m/s never counts (their cells and goldens unchanged)
+JITTER_COUNTED = 1.0
 #: gyro-accelerometer correlation of sample differences, in 1/sqrt(N), that means motion
 COHERENCE_SIGMAS = 4.5
 #: order of the differences of :func:`difference_density`
@@ -276,6 +298,32 @@ def base_velocity_rms(dth, dvv, dts):
             math.sqrt(float(np.mean(vert * vert))))
 
 
+def velocity_jitter(dth, dvv, dts, chunk_s=JITTER_CHUNK_S):
+    """1-sigma (m/s per horizontal axis) of the velocity jitter of IMU samples; module docstring.
+
+    ``dth``, ``dvv`` (N, 3) increments, ``dts`` (N,) intervals. The specific force
+    integrated in the initial body frame (:func:`~sins_align_ros.nav.coarse.velocity_integral_b0`),
+    levelled by its own gravity integral, less its best quadratic over each ``chunk_s``
+    seconds; the median over the pieces of their horizontal mean square (a piece with a
+    manoeuvre's jerk is one of many), with the fit's three degrees of freedom taken out.
+    Vibration bounded in velocity stays in it whole; white accelerometer noise of density
+    ``q`` leaves about ``0.2 q sqrt(chunk_s)``. NaN with fewer than 5 pieces.
+    """
+    m = int(round(chunk_s / float(np.mean(dts))))
+    k = len(dth) // m if m > 3 else 0
+    if k < 5:
+        return float('nan')
+    V = velocity_integral_b0(dth, dvv)[1]
+    up = V[-1] - V[0]
+    up = up / np.linalg.norm(up)
+    V = V[:k * m].reshape(k, m, 3)
+    t = np.cumsum(dts[:m]) - dts[0]
+    A = np.column_stack([np.ones(m), t, t * t])
+    res = V - np.einsum('ij,kjl->kil', A, np.einsum('ij,kjl->kil', np.linalg.pinv(A), V))
+    horiz = res - (res @ up)[..., None] * up
+    return math.sqrt(float(np.median(np.sum(horiz * horiz, axis=(1, 2)))) / (2.0 * (m - 3)))
+
+
 def coherent(dth, dvv, order=DIFF_ORDER):
     """Tell whether the gyro and accelerometer differences are correlated (base motion).
 
@@ -355,6 +403,28 @@ def gnss_check(out, gnss, t0, t1, cfg, window=None):
             sigma = min(sigma, math.hypot(motion_free_velocity_sigma(t_v, V, window, arm),
                                           arm_sigma))
         _gnss_sigma(out, cfg, 'gnss_vel_sigma_mps', sigma, vel_reported, 'm/s')
+        if window is not None and cfg['use_gnss_velocity']:
+            _velocity_jitter(out, cfg, window, vel_reported)
+
+
+def _velocity_jitter(out, cfg, window, reported):
+    """Widen ``imu_velocity_jitter_mps`` to the coarse window's jitter where it counts.
+
+    Counted where at least :data:`JITTER_COUNTED` times the GNSS velocity sigma the model
+    takes (as the check has left it) and more than :data:`NOISE_RATIO` times the
+    configured jitter (module docstring).
+    """
+    _, dth, dvv, dts = window
+    j = velocity_jitter(dth, dvv, dts)
+    out.figures['velocity_jitter_mps'] = j
+    vel = out.widened.get('gnss_vel_sigma_mps', gnss_sigma(cfg, 'gnss_vel_sigma_mps', reported))
+    model = cfg['imu_velocity_jitter_mps']
+    if not (j >= JITTER_COUNTED * vel and j > NOISE_RATIO * model):
+        return
+    out.widened['imu_velocity_jitter_mps'] = j
+    out.findings.append(f'IMU velocity jitter {j:.3g} m/s in the data (vibration, bounded), '
+                        f'{model:.3g} configured, GNSS velocity noise {vel:.3g} m/s: '
+                        'imu_velocity_jitter_mps widened (added to the GNSS velocity noise)')
 
 
 def _lever_arm(out, cfg, t_v, V, window):
