@@ -13,7 +13,8 @@ import pytest
 
 from sins_align_ros.align import slow_monitor
 from sins_align_ros.align.aided import GnssFix
-from sins_align_ros.align.slow_monitor import MAX_LEG_S, SlowErrorMonitor
+from sins_align_ros.align.slow_monitor import (MAX_LEG_S, MAX_YAW_RATE, RATE_SPAN,
+                                               SlowErrorMonitor, YawRate)
 from sins_align_ros.eval.integrity import (MAX_OUTSIDE, outside_shares, published_sigma,
                                            run_integrity)
 from sins_align_ros.eval.run import run_pipeline
@@ -24,16 +25,26 @@ from sins_align_ros.sim.gnss import GnssSpec
 from sins_align_ros.sim.presets import SENSOR_GRADES, Scenario, alignment_params
 from sins_align_ros.sim.trajectory import Segment, Trajectory
 
-RATE = 5.0                       # GNSS epochs per second of the synthetic drives
+RATE = 4.0                       # GNSS epochs per second of the synthetic drives (stamps exact)
+#: epochs in the yaw rate's span: a leg starts this many epochs after a turn's (or the drive's
+#: start's) last epoch, and a leg ended by a turn whose first epoch already reads above
+#: MAX_YAW_RATE is trimmed to the epoch this many before that first turn epoch
+SPAN_EPOCHS = int(round(RATE_SPAN * RATE))
 LAT0, LON0 = math.radians(48.0), math.radians(11.0)
 
 
 class Drive:
-    """Feed a monitor the epochs of a vehicle at ``speed``, its shown yaw off by ``offset``."""
+    """Feed a monitor the epochs of a vehicle at ``speed``, its shown yaw off by ``offset``.
 
-    def __init__(self, mon, speed=10.0, var_h=math.radians(0.1) ** 2, velocity=True):
+    ``shake``: yaw errors (rad) added to the shown yaw epoch after epoch, cyclically (a
+    vibrating chassis).
+    """
+
+    def __init__(self, mon, speed=10.0, var_h=math.radians(0.1) ** 2, velocity=True,
+                 shake=(0.0,)):
         self.mon, self.speed, self.var_h, self.velocity = mon, speed, var_h, velocity
         self.t, self.yaw, self.pos = 0.0, 0.3, np.zeros(2)
+        self.shake, self.k = shake, 0
         self.dues = []
 
     def _epoch(self, offset):
@@ -42,14 +53,15 @@ class Drive:
         fix = GnssFix(self.t, LAT0 + self.pos[1] / R_M,
                       LON0 + self.pos[0] / (R_N * math.cos(LAT0)), 0.0,
                       v if self.velocity else None)
-        C = euler_to_dcm((0.0, 0.0, self.yaw + offset))
+        C = euler_to_dcm((0.0, 0.0, self.yaw + offset + self.shake[self.k % len(self.shake)]))
+        self.k += 1
         if self.mon.add(self.t, C, v, self.var_h, fix):
             self.dues.append((self.t, self.mon.due))
             self.mon.due = None
 
     def straight(self, seconds, offset):
         """A straight leg of ``seconds``; returns its epochs."""
-        if self.t == 0.0:       # a first epoch: no yaw rate yet (no previous one), no leg
+        if self.t == 0.0:       # a first epoch: the straight's epochs follow it as a turn's
             self._epoch(offset)
             self.t += 1.0 / RATE
         n = int(round(seconds * RATE))
@@ -60,11 +72,23 @@ class Drive:
         return n
 
     def turn(self, offset, degrees=90.0, rate_dps=15.0):
-        """A turn (its epochs end the leg before it)."""
+        """A turn (its first epoch above MAX_YAW_RATE ends the leg before it)."""
         for _ in range(int(round(degrees / rate_dps * RATE))):
             self.yaw += math.radians(rate_dps) / RATE
-            self.t += 1.0 / RATE
             self._epoch(offset)
+            self.t += 1.0 / RATE
+
+
+def _leg_epochs(n):
+    """The epochs of the leg a straight of ``n`` epochs between two 15 deg/s turns makes.
+
+    The straight's ``i``-th epoch (``i = 1..n``, the turn before it ending at ``i = 0``)
+    joins the leg once the yaw rate's window (exactly RATE_SPAN at these exact stamps) holds
+    no turn epoch: ``i >= SPAN_EPOCHS`` (one turn epoch, 3.75 deg, is over 3 deg/s x 1 s).
+    The next turn's first epoch (``i = n + 1``) reads above MAX_YAW_RATE and ends the leg,
+    trimmed to the epochs up to its window's start: ``i <= n + 1 - SPAN_EPOCHS``.
+    """
+    return n + 2 - 2 * SPAN_EPOCHS
 
 
 def _leg_sigma(mon, n, var_h, speed):
@@ -78,10 +102,11 @@ def test_a_leg_is_judged_by_the_closed_form_and_an_honest_heading_never_fails():
     mon = SlowErrorMonitor(legs=3, sigmas=3.0, sideslip_deg=0.5, vel_sigma=0.1)
     d = Drive(mon)
     offset = math.radians(0.8)
-    n = d.straight(20.0, offset)
+    n = _leg_epochs(d.straight(20.0, offset))
     d.turn(offset)
     assert mon.n_judged == 1
-    t, D, sigma, z, _ = mon.judged[-1]
+    t, D, sigma, z, t0 = mon.judged[-1]
+    assert (t0, t) == (SPAN_EPOCHS / RATE, (n + SPAN_EPOCHS - 1) / RATE)
     # the course is the true yaw: course minus the published yaw is minus the offset
     assert D == pytest.approx(-offset, abs=1e-9)
     assert sigma == pytest.approx(_leg_sigma(mon, n, d.var_h, d.speed), rel=1e-9)
@@ -115,7 +140,9 @@ def test_a_persistent_excess_fails_after_the_legs_and_agreeing_legs_end_it():
     assert factor == pytest.approx(min(np.mean(np.square(zs)) / 9.0,
                                        slow_monitor.MAX_INFLATION), rel=1e-12)
     span = mon.judged[-1][0] - mon.judged[0][4]
-    assert span == pytest.approx(3 * 20.0 + 2 * 6.0 - 0.2, rel=1e-9)   # first epoch: no leg
+    # the first leg starts RATE_SPAN after the drive's first epoch, the third ends RATE_SPAN
+    # before its turn's first epoch, one epoch after the drive's 3 x 20 s + 2 x 6 s
+    assert span == pytest.approx(3 * 20.0 + 2 * 6.0 + 1.0 / RATE - 2.0 * RATE_SPAN, rel=1e-9)
     assert q_drift == pytest.approx(off ** 2 / span ** 3, rel=1e-9)
     assert mon.take_findings() == [mon.finding] and mon.take_findings() == []
     # the heading agrees again (the filter was opened and took the course): the failure
@@ -153,7 +180,7 @@ def test_position_only_course_from_the_legs_displacement():
     mon = SlowErrorMonitor(legs=3, sigmas=3.0, sideslip_deg=0.5, pos_sigma=sigma_p)
     d = Drive(mon, speed=2.0, velocity=False)
     off = math.radians(2.0)
-    n = d.straight(20.0, off)
+    n = _leg_epochs(d.straight(20.0, off))
     d.turn(off)
     t, D, sigma, z, _ = mon.judged[-1]
     k = n // 3
@@ -165,6 +192,57 @@ def test_position_only_course_from_the_legs_displacement():
     d.straight(3.0, off)
     d.turn(off)
     assert mon.n_judged == 1
+
+
+def _turn_at_10_dps():
+    mon = SlowErrorMonitor(legs=3, sigmas=3.0, sideslip_deg=0.5, pos_sigma=0.9)
+    d = Drive(mon, speed=2.0, velocity=False)
+    off = math.radians(2.0)
+    n = d.straight(20.0, off)
+    d.turn(off, rate_dps=10.0)
+    return n, off, mon.judged[-1]
+
+
+def test_a_turns_first_epochs_the_windowed_rate_admits_are_trimmed(monkeypatch):
+    """At 10 deg/s a turn's first epoch (2.5 deg in a 1-s window) reads 2.5 deg/s, under the
+    bound, and joins the leg; its second (5 deg/s) ends it, and the leg is trimmed to the
+    epochs up to that window's start: the straight's epoch ``n - 2``. The positions-only
+    course then has no turn in it: D is minus the offset (to the geodesy's 1e-6 rad of
+    test_position_only_course_from_the_legs_displacement); untrimmed, the turn epoch's
+    2.5 deg in the leg's mean yaw over its ``n - 2`` epochs would move D by 2.5 / (n - 2)
+    deg."""
+    assert math.radians(10.0) / RATE / RATE_SPAN < MAX_YAW_RATE < math.radians(10.0) / RATE * 2
+    n, off, (t, D, _, _, t0) = _turn_at_10_dps()
+    assert (t0, t) == (SPAN_EPOCHS / RATE, (n - 2) / RATE)
+    assert D == pytest.approx(-off, abs=1e-6)
+    monkeypatch.setattr(slow_monitor.Leg, 'trim', lambda leg, t_end: None)
+    n, off, (t, D, _, _, t0) = _turn_at_10_dps()
+    m = n + 1 - SPAN_EPOCHS + 1                # from the SPAN_EPOCHS-th to the turn's first
+    assert t == (n + 1) / RATE
+    assert D == pytest.approx(-off - math.radians(2.5) / m, abs=1e-6)
+
+
+def test_a_shaking_yaw_still_makes_legs():
+    """A yaw shaking by 1 deg epoch to epoch (4 deg/s per 0.25-s interval: no leg from the
+    last interval's rate) changes by at most 2 deg over RATE_SPAN (the shake's period, 3
+    epochs, is no divisor of the span's 4): legs are made, and each differs from the course
+    by the offset plus the mean shake over its epochs."""
+    shake = np.radians([1.0, 0.0, -1.0])
+    last = YawRate()
+    rates = [last.add(k / RATE, shake[k % 3]) for k in range(2 * SPAN_EPOCHS)]
+    assert max(rates[SPAN_EPOCHS:]) == pytest.approx(math.radians(2.0) / RATE_SPAN, rel=1e-12)
+    assert math.radians(1.0) * RATE > MAX_YAW_RATE > max(rates[SPAN_EPOCHS:])
+    mon = SlowErrorMonitor(legs=3, sigmas=3.0, sideslip_deg=0.5, vel_sigma=0.1)
+    d = Drive(mon, shake=tuple(shake))
+    off = math.radians(0.5)
+    n = d.straight(20.0, off)
+    assert mon.n_judged == 0 and mon.leg is not None
+    d.turn(off)
+    assert mon.n_judged == 1
+    m = _leg_epochs(n)
+    # the leg's epochs: the drive's SPAN_EPOCHS-th (its first is the 0th) on
+    mean_shake = np.mean(shake[np.arange(SPAN_EPOCHS, SPAN_EPOCHS + m) % 3])
+    assert mon.judged[-1][1] == pytest.approx(-off - mean_shake, abs=1e-9)
 
 
 def test_the_drift_noise_raised_for_good():
@@ -250,13 +328,13 @@ def test_an_untold_bias_leaves_aligned_with_the_reason_and_comes_back(drift):
     mon = p.fine.slow
     assert mon.n_failures >= 1
     # the first failure: at the epoch that ended the third of three consecutive legs beyond
-    # 3 sigma
+    # 3 sigma (a leg ended by a turn is trimmed to its epochs up to RATE_SPAN before that one)
     z = np.array([j[3] for j in mon.judged])
     t_leg = np.array([j[0] for j in mon.judged])
     bad = np.abs(z) > 3.0
     first = next(i for i in range(2, len(z)) if bad[i - 2:i + 1].all())
     t_fail = mon.failed_at[0]
-    assert t_leg[first] < t_fail < t_leg[first] + 1.0
+    assert t_leg[first] < t_fail < t_leg[first] + RATE_SPAN + 1.0
     i_fail = int(np.searchsorted(out.t, t_fail))
     assert out.t[i_fail] == t_fail
     # before: aligned, and the heading silently wrong (the truth beyond 3 published sigma)

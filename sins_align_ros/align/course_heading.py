@@ -67,23 +67,19 @@ by more than a few degrees on a straight leg). Not in the seeds (their filters o
 the heading from their manoeuvres or their gyros).
 """
 import math
-from collections import deque
 
 import numpy as np
 
 from ..nav import earth
 from .heading import HeadingFix, wrap
 from .slow_monitor import (MAX_COURSE_SIGMA, MAX_LEG_S, MAX_YAW_RATE, MIN_EPOCHS, MIN_LEG_S,
-                           MIN_SPEED,
-                           STRAIGHT, Leg)
+                           MIN_SPEED, RATE_SPAN, STRAIGHT, Leg, YawRate)
 
 #: a linear yaw update of a course fix up to this filter heading 1-sigma, rad; beyond, taken
 #: directly; the aid starts only on a published heading beyond it (or unknown)
 LINEAR_MAX = math.radians(25.0)
 #: the aid feeds a leg while the published heading 1-sigma is above the leg's over this
 BETTER = 2.0
-#: the yaw rate of the straightness test is taken over at least this long, s
-RATE_SPAN = 1.0
 #: disagreeing legs that turn the aid off for the stage
 MAX_DISAGREE = 2
 
@@ -108,7 +104,7 @@ class CourseHeading:
         self.markov_var = float(markov_sigma) ** 2
         self.markov_tau = float(markov_tau)
         self.leg = None
-        self._recent = deque()
+        self._rate = YawRate(RATE_SPAN)
         #: the aid is off for good (legs disagreed: a crab or a sideways motion)
         self.off = False
         self.n_judged = self.n_used = self.n_taken = self.n_disagree = 0
@@ -130,12 +126,7 @@ class CourseHeading:
         yaw = math.atan2(C_b_n[1, 0], C_b_n[0, 0])
         # the yaw rate over at least RATE_SPAN s: a vibrating chassis's yaw shakes by
         # degrees per second over one 0.4-s epoch interval
-        self._recent.append((t, yaw))
-        while len(self._recent) > 2 and t - self._recent[1][0] >= RATE_SPAN:
-            self._recent.popleft()
-        t0, y0 = self._recent[0]
-        rate = (math.inf if not t - t0 >= min(RATE_SPAN, 0.5 * MIN_LEG_S) or not t > t0
-                else abs(wrap(yaw - y0)) / (t - t0))
+        rate = self._rate.add(t, yaw)
         # no speed test per epoch: a position-only filter's speed scatters by half a metre
         # a second at 1 m/s; a leg that did not move far enough has too vague a course
         straight = rate <= MAX_YAW_RATE
