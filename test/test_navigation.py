@@ -294,7 +294,7 @@ def test_a_lost_heading_takes_no_information_from_the_horizontal_force(method):
     assert shrink[True] == pytest.approx(1.0, abs=1e-6)
     assert shrink[False] < 1.0 - 1e-3          # measurably (kf 0.5x, ukf 0.98x from 29 deg)
     # lost for longer than the wait for an acquisition: the linear model is let try
-    from sins_align_ros.align.navigation import LOST_WAIT_S
+    from sins_align_ros.align.force import LOST_WAIT_S
     eng = IntegratedNavigation(np.eye(3), np.array([1.0, 0.0, 0.0]), LAT, 0.0, 0.0, P0, Qc,
                                R, method=method, heading_lost=True)
     eng.lost_s = LOST_WAIT_S

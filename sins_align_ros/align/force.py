@@ -103,6 +103,20 @@ class ForceModel:
             earth.gravity(lat, h))
         return f
 
+    #: the heading is lost (an unknown angle): the horizontal force stays out of the model
+    #: (:meth:`_drop_horizontal_force`) for at most :data:`LOST_WAIT_S`
+    heading_lost = False
+    #: seconds the heading has been lost
+    lost_s = 0.0
+
+    def _count_lost(self, T):
+        """Add the interval's ``T`` s to the time the heading has been lost (0 once found)."""
+        self.lost_s = self.lost_s + T if self.heading_lost else 0.0
+
+    def _holding_lost(self):
+        """Tell whether a lost heading still keeps the horizontal force out of the model."""
+        return self.heading_lost and self.lost_s < LOST_WAIT_S
+
     def _drop_horizontal_force(self, f_n, lat, h, max_heading_var=np.inf):
         """Return the force (3,) the model uses while the heading is lost: the vertical alone.
 

@@ -75,7 +75,6 @@ from ..nav import earth
 from ..nav.frames import orthonormalize, reorthonormalize
 from ..units import DPH, UG
 from .aided import HEADING_PRIOR_MAX, GnssAidedEngine, GnssFix
-from .force import LOST_WAIT_S
 from .gnss_gate import FilterDiverged, GnssGate  # noqa: F401  (FilterDiverged re-exported)
 
 I_V, I_P, I_PHI, I_EPS = slice(0, 2), slice(2, 4), slice(4, 7), slice(7, 10)
@@ -269,7 +268,7 @@ class MovingBaseAlignment(GnssAidedEngine):
         if self.has_accel_bias:
             C = orthonormalize(s.C_sum / T)
             f_n = true_specific_force(f_n, C, self.kf.x)
-        if self.heading_lost and self.lost_s < LOST_WAIT_S:
+        if self._holding_lost():
             f_n = self._drop_horizontal_force(f_n, lat, h, HEADING_PRIOR_MAX ** 2)
         else:
             f_n = self._model_force(f_n, lat, h)
@@ -291,7 +290,7 @@ class MovingBaseAlignment(GnssAidedEngine):
         bench/results/asckf_ship.md).
         """
         super()._interval_ended(T)
-        self.lost_s = self.lost_s + T if self.heading_lost else 0.0
+        self._count_lost(T)
         if not self.drift_in_body:
             return
         C = self.mech.C_b_n

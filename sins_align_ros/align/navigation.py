@@ -56,7 +56,7 @@ gyro bias) the 15-state filters published 8-15 deg of heading sigma over a headi
   a bootstrap, never fed it since the heading looked found. The heading is found again
   by the GNSS track (above ``track_min_speed_mps``, below), a straight leg's course
   (:mod:`.course_heading`, taken directly) or an external heading taken directly. It
-  waits for one at most :data:`LOST_WAIT_S` (two of the longest legs); a vehicle that
+  waits for one at most :data:`~.force.LOST_WAIT_S` (two of the longest legs); a vehicle that
   offers none in that time is left to the linear model's own convergence, as before: a
   MEMS USV rolling in a seaway below the track speed (seed 004, no straight leg) had its
   heading found by it from 45 deg off (1-1.4 deg RMS at the end), and held lost it ended
@@ -89,7 +89,6 @@ from ..units import DPH, UG
 from .aided import ANGLE_UNKNOWN_VAR, GnssAidedEngine
 # seconds a lost heading waits for a nonlinear acquisition with the horizontal force out of
 # the model; then the linear model's own convergence is let try (module docstring)
-from .force import LOST_WAIT_S
 from .gnss_gate import GnssGate
 from .gyro_scale import GyroScaleStates
 from .rotation_error import COHERENCE_FACTOR
@@ -252,7 +251,7 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
         """
         self._interval_ended_bound()
         self._scale_states_due()
-        self.lost_s = self.lost_s + T if self.heading_lost else 0.0
+        self._count_lost(T)
         if T > 0.0:
             self.eps_markov *= math.exp(-T / self.tau_g)
             self.nab *= math.exp(-T / self.tau_a)
@@ -268,7 +267,7 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
         C = orthonormalize(C)
         m = self.mech
         self.kf.consider = None
-        if self.heading_lost and self.lost_s < LOST_WAIT_S:
+        if self._holding_lost():
             f_n = self._drop_horizontal_force(f_n, m.lat, m.h, HEADING_LINEAR_MAX_VAR)
             if self._unmodelled_acc_var > 0.0 and self._under_way:
                 self.kf.consider = self._tilt_considered()
