@@ -141,15 +141,17 @@ def _rows(run, rate):
 def test_a_position_only_robot_finds_its_heading_inside_its_sigma(robot_data):
     """Node defaults, ``asckf`` (which publishes every heading sigma), seed 1000.
 
-    Without the aid the heading is never found (the coarse heading stays 100+ deg off and is
-    published as unknown). With it: at the end the heading error is inside 3 sigma, the
-    sigma is the issue's 10 deg or less, and no more than the eval rule's 5 % of the 1-s
-    rows after the first leg's fix lie outside 3 sigma, none beyond 5 (silent-wrong rule).
+    Without the aid the heading is never found (the coarse heading stays 100+ deg off,
+    published as unknown or with a sigma of tens of degrees). With it: at the end the
+    heading error is inside 3 sigma, the sigma is the issue's 10 deg or less, and no more
+    than the eval rule's 5 % of the 1-s rows after the first leg's fix lie outside 3 sigma,
+    none beyond 5 (silent-wrong rule).
     """
     sc, data = robot_data
     off = run_pipeline(defaults(sc, 'asckf', course_heading=False), data)
     rows, err, sig = _rows(off, sc.imu_rate_hz)
-    assert abs(err[-1, 2]) > math.radians(30.0) and np.isnan(sig[-1, 2])
+    # not found: far off, and published as unknown or with a sigma of tens of degrees
+    assert abs(err[-1, 2]) > math.radians(30.0) and not sig[-1, 2] < math.radians(30.0)
     run = run_pipeline(defaults(sc, 'asckf'), data)
     aid = run.pipeline.fine.course
     assert aid.n_taken >= 1 and aid.n_used >= 3 and not aid.off

@@ -19,6 +19,11 @@ the finding is reported:
   is 20 sigma^2 for white noise; a smooth motion's third difference falls as (w dt)^3)
   still show the noise: :func:`difference_density`. Vibration and quantization add to
   it, so it is an upper bound, used only to widen (by the same rule), never to narrow.
+  The grade is judged by it; ``gyro_arw_dpsh``, which the filters take as a random walk
+  of the attitude, is widened only to the smaller of it and the random walk's bound over
+  spans of seconds (:func:`~.angle_walk.walk_density`): a vibrating mount's jitter is
+  bounded in angle (a skid-steer robot: 37 deg/sqrt(h) at the sample level, at most 9-11
+  over seconds, from a 3 or 0.42 deg/sqrt(h) gyro).
 * **Biases on a still base** (the window shows no motion once the noise is right):
   the mean specific force must have the magnitude of normal gravity, so
   ``|f| - g`` is the accelerometer bias along the vertical; the mean rate along the
@@ -105,6 +110,7 @@ import numpy as np
 from ..nav import earth
 from ..nav.coarse import arm_velocity_b0, detect_motion, velocity_integral_b0
 from ..units import DEG, DPH, DPSH, UG
+from .angle_walk import walk_density, walk_or_noise
 from .arm_check import fit_lever_arm, levelling
 from .factory import gnss_sigma, uses_reported_covariance
 
@@ -132,9 +138,8 @@ GYRO_INSTABILITY_PER_ARW = 15.0
 #: on a moving base, the most gyro white noise (deg/sqrt(h)) counted for the bias
 #: instability: our consumer MEMS preset's 3 (45 deg/h; that preset's is 50). Third
 #: differences see a vibrating chassis as noise (robot_skid: 37 deg/sqrt(h) from a 0.42
-#: deg/sqrt(h) gyro), which ``gyro_arw_dpsh`` takes whole as random walk (on the safe
-#: side: a mount's vibration is bounded in angle) but which is no sign of a bias that
-#: wanders faster; 15 x 37 = 555 deg/h of instability
+#: deg/sqrt(h) gyro; ``gyro_arw_dpsh`` takes only its walk over seconds, :mod:`.angle_walk`),
+#: which is no sign of a bias that wanders faster; 15 x 37 = 555 deg/h of instability
 #: kept the robot's vertical drift from ever being learnt from its straight legs' courses
 #: (its sigma still 500 deg/h after 300 s, the heading sigma growing by 1 deg every 8 s
 #: between legs while the error held, and published unknown at the end of most runs).
@@ -570,7 +575,8 @@ def check(window, position, cfg, at_rest=True, gnss=None):
         # which averages out over a GNSS interval: count at most the white noise of IMUs
         # of the class the gyro noise shows
         vrw_cap = _class_value(ACCEL_VRW_BY_GYRO_NOISE, arw / DPSH) * UG
-        _noise(out, cfg, arw, min(difference_density(f, dt), vrw_cap), moving=True)
+        _noise(out, cfg, arw, min(difference_density(f, dt), vrw_cap), moving=True,
+               walk=walk_density(dth, dts))
         out.note = ('bias bounds skipped: GNSS shows the base moving, or a moving-base filter '
                     'runs without GNSS (white noise from third differences of the samples)')
         if not lat_known:
@@ -604,20 +610,33 @@ def check(window, position, cfg, at_rest=True, gnss=None):
     return _heading(out, cfg, lat)
 
 
-def _noise(out, cfg, arw, vrw, moving):
+def _noise(out, cfg, arw, vrw, moving, walk=None):
     """Widen the white noise (and raise the biases) where ``arw``/``vrw`` (SI) exceed the model.
 
+    ``walk`` (rad/sqrt(s), moving base): the bound of the gyro's random walk over seconds
+    (:func:`~.angle_walk.walk_density`); ``gyro_arw_dpsh`` is widened to the smaller of it
+    and ``arw`` (a vibrating mount's jitter is bounded in angle), while the grade (the
+    biases, the scale factors) is judged by ``arw``, the sample-level noise.
     Returns the densities as widened (the configured ones where not), rad/sqrt(s) and
     m/s^2/sqrt(Hz).
     """
     out.figures.update(gyro_noise_dpsh=arw / DPSH, accel_noise_ug_rthz=vrw / UG)
+    q = walk_or_noise(walk, arw)
+    if walk is not None and math.isfinite(walk):
+        out.figures['gyro_walk_dpsh'] = walk / DPSH
     arw_cfg = cfg['gyro_arw_dpsh'] * DPSH
     vrw_cfg = cfg['accel_vrw_ug_rthz'] * UG
     if arw > NOISE_RATIO * arw_cfg:
-        out.widened['gyro_arw_dpsh'] = arw / DPSH
-        out.findings.append(f'gyro white noise {arw / DPSH:.3g} deg/sqrt(h) in the data, '
-                            f'{cfg["gyro_arw_dpsh"]:.3g} configured: gyro_arw_dpsh widened')
-        arw_cfg = arw
+        bounded = q < arw
+        part = (f', its random walk over seconds at most {q / DPSH:.3g} (the rest bounded in '
+                'angle: vibration)' if bounded else '')
+        if q > NOISE_RATIO * arw_cfg:
+            out.widened['gyro_arw_dpsh'] = q / DPSH
+            out.findings.append(f'gyro white noise {arw / DPSH:.3g} deg/sqrt(h) in the data'
+                                f'{part}, {cfg["gyro_arw_dpsh"]:.3g} configured: '
+                                'gyro_arw_dpsh widened'
+                                + (f' to {q / DPSH:.3g}' if bounded else ''))
+            arw_cfg = q
         # on a moving base a wide bias prior costs little (GNSS aiding observes the bias
         # through the motion), so take the upper end of the presets' ratios there
         per_arw = GYRO_BIAS_PER_ARW_MOVING if moving else (
