@@ -1,4 +1,4 @@
-"""Gyro scale factors as filter states of the integrated-navigation engine (issue 44).
+"""Gyro scale factors as filter states of the GNSS-aided engines (issue 44).
 
 A gyro triad measures ``(I + S) w`` (plus misalignment and bias): a scale-factor error
 ``s_j`` turns every rotation ``A_j`` about body axis ``j`` into an attitude error
@@ -20,6 +20,14 @@ through the heading it leaves, and the heading no longer pays the whole error ag
 each turn. The compensation divides each increment (after the drift) by ``1 + s``.
 The unscented filter takes the term into its nonlinear drift
 (:func:`~sins_align_ros.models.loosely_coupled.derivative18`, ``w_b``).
+
+The seed 000 engine (:mod:`.moving`, ASCKF and CKF) has the same states: its drift is
+resolved in the computed frame, so its transition adds ``C~ diag(w_b) ds`` to the drift
+over the interval (both constant over it: exact in the nonlinear model), and the
+square-root filter appends the states to its factor (``ASCKF.append_states``). Measured
+(car:rtk, the plain MEMS grade with no scale factor, which the self-check models at 2 %,
+ASCKF told right, 10 seeds): heading 30.7' RMS under a 35.1' sigma with the noise, 23.8'
+under 28.4' with the states, as ``kf``'s 23.1' under 28.2'.
 
 The prior 1-sigma is the told (or self-check-raised) scale factor times
 :data:`SCALE_STATE_FACTOR`; a later raise (the motion check seeing turns) widens the
@@ -53,10 +61,13 @@ HEADING_MAX_VAR = math.radians(HEADING_MAX_DEG) ** 2
 
 
 class GyroScaleStates:
-    """Mixin of :class:`~.navigation.IntegratedNavigation`: the scale-factor states.
+    """Mixin of the GNSS-aided engines: the scale-factor states.
 
-    Uses the engine's ``kf``, ``n``, ``Qc``, ``_Qc0``, ``_held`` and the interval's body
-    rotation ``_rot`` (:class:`~.rotation_error.RotationError`).
+    Of :class:`~.navigation.IntegratedNavigation` and :class:`~.moving.MovingBaseAlignment`.
+    Uses the engine's ``kf``, ``n``, ``i_phi``, ``Qc``, ``_Qc0``, ``_held`` and the
+    interval's body rotation ``_rot`` (:class:`~.rotation_error.RotationError`); the engine
+    calls :meth:`_scale_states_due` at each interval's end, :meth:`_compensate_scale` on its
+    increments and :meth:`_feed_back_scale` in its feedback, and sets ``velocity_measured``.
     """
 
     #: slice of the scale-factor states in the state vector; None: not modelled

@@ -54,6 +54,11 @@ heading by 91-175 deg on seeds 1000, 1001, 1005 of that cell) and feeds the next
 went from 1, 10, 2, 10 silent-wrong runs of 10 (mems, mems_ahrs; told defaults, right)
 to none, every run ending inside 3 sigma (heading 1-sigma at the end 4.2-4.8 deg).
 
+Gyro scale factors (not in seed 000, whose IMU is calibrated): as the navigation engine,
+the engine carries them as random-constant states once the heading is known and GNSS
+velocity is measured (:mod:`.gyro_scale`), and as noise (:mod:`.rotation_error`) before;
+the transition adds ``C~ diag(w_b) ds`` to the drift of the interval.
+
 Filters (switchable one improvement at a time, seed 000 sec. 3):
 ``square_root=False`` is the conventional CKF (eq. 22-34); with
 ``square_root=True`` the QR square-root CKF, plus ``fading`` (multiple fading
