@@ -60,14 +60,14 @@ CACHE = Path(os.environ.get('TMPDIR', '/tmp')) / 'sins_align_robot_tilt_cache'
 
 
 def scenario(key, grade, variant):
-    """The matrix cell's scenario with the variant's simulator errors zeroed."""
+    """Return the matrix cell's scenario with the variant's simulator errors zeroed."""
     sc = integrity.scenario_of(key, grade)
     sc.imu = sc.imu.with_(**VARIANTS[variant])
     return sc
 
 
 def value(text):
-    """A ``--set`` value: bool, number or text."""
+    """Parse a ``--set`` value: bool, number or text."""
     if text in ('True', 'False'):
         return text == 'True'
     try:

@@ -54,6 +54,11 @@ heading by 91-175 deg on seeds 1000, 1001, 1005 of that cell) and feeds the next
 went from 1, 10, 2, 10 silent-wrong runs of 10 (mems, mems_ahrs; told defaults, right)
 to none, every run ending inside 3 sigma (heading 1-sigma at the end 4.2-4.8 deg).
 
+Gyro scale factors (not in seed 000, whose IMU is calibrated): as the navigation engine,
+the engine carries them as random-constant states once the heading is known and GNSS
+velocity is measured (:mod:`.gyro_scale`), and as noise (:mod:`.rotation_error`) before;
+the transition adds ``C~ diag(w_b) ds`` to the drift of the interval.
+
 Filters (switchable one improvement at a time, seed 000 sec. 3):
 ``square_root=False`` is the conventional CKF (eq. 22-34); with
 ``square_root=True`` the QR square-root CKF, plus ``fading`` (multiple fading
@@ -76,6 +81,7 @@ from ..nav.frames import orthonormalize, reorthonormalize
 from ..units import DPH, UG
 from .aided import HEADING_PRIOR_MAX, GnssAidedEngine, GnssFix
 from .gnss_gate import FilterDiverged, GnssGate  # noqa: F401  (FilterDiverged re-exported)
+from .gyro_scale import GyroScaleStates
 
 I_V, I_P, I_PHI, I_EPS = slice(0, 2), slice(2, 4), slice(4, 7), slice(7, 10)
 #: accelerometer bias, body axes (13-state model only)
@@ -131,11 +137,12 @@ def true_specific_force(f_c, C_b_n, x):
     return la.C_n_nprime(x[I_PHI]).T @ (np.asarray(f_c) - C_b_n @ x[I_NAB])
 
 
-class MovingBaseAlignment(GnssAidedEngine):
+class MovingBaseAlignment(GyroScaleStates, GnssAidedEngine):
     """Mechanization + seed 000 filter; see the module docstring.
 
     ``i_phi``, ``i_v``, ``i_eps``: the misalignment, velocity-error and gyro-drift slices
-    of the state; ``n`` its size (10, or 13 with the accelerometer bias).
+    of the state; ``n`` its size (10, or 13 with the accelerometer bias; ``n0`` that, and
+    ``n`` adds the gyro scale factors once they are states, :mod:`.gyro_scale`).
 
     Parameters
     ----------
@@ -203,6 +210,9 @@ class MovingBaseAlignment(GnssAidedEngine):
     """
 
     i_phi, i_v, i_eps = I_PHI, I_V, I_EPS
+    #: the drift and accelerometer bias stay in the filter: appending the gyro scale-factor
+    #: states keeps them (:mod:`.gyro_scale`)
+    _append_zeroes_state = False
     #: seed 000's 10-state model has no accelerometer bias: bias / g is added to the
     #: tilt; set per instance (True with 13 states)
     has_accel_bias = False
@@ -221,7 +231,7 @@ class MovingBaseAlignment(GnssAidedEngine):
             P0 = np.pad(P0, (0, 3))
             P0[I_NAB, I_NAB] = np.eye(3) * max(accel_bias, ACCEL_BIAS_FLOOR) ** 2
             Qc = np.r_[Qc, [accel_bias_q] * 3]
-        self.n = len(P0)
+        self.n0 = self.n = len(P0)
         if self.n not in (la.N_STATES, la.N_STATES_ACCEL) or len(Qc) != self.n:
             raise ValueError(f'P0 ({self.n}) and Qc ({len(Qc)}) must have 10 or 13 states')
         self.has_accel_bias = self.n == la.N_STATES_ACCEL
@@ -243,7 +253,7 @@ class MovingBaseAlignment(GnssAidedEngine):
                          gate=GnssGate(gate_probability, gate_max_rejects, sizes=(2, 4)),
                          use_velocity=use_velocity, adaptive=square_root and adaptive,
                          use_reported_cov=use_reported_cov,
-                         attitude_sums=self.has_accel_bias)
+                         attitude_sums=True)
         self.drift_in_body = bool(drift_in_body)
         #: the heading is lost (an unknown angle at the hand-over, the prior capped):
         #: the horizontal force stays out of the model until a nonlinear acquisition
@@ -264,16 +274,30 @@ class MovingBaseAlignment(GnssAidedEngine):
         f_n = s.dv_sum / T
         v_n = s.v_sum / T
         lat, h = self.mech.lat, self.mech.h
-        C = None
+        C = orthonormalize(s.C_sum / T)
         if self.has_accel_bias:
-            C = orthonormalize(s.C_sum / T)
             f_n = true_specific_force(f_n, C, self.kf.x)
         if self._holding_lost():
             f_n = self._drop_horizontal_force(f_n, lat, h, HEADING_PRIOR_MAX ** 2)
         else:
             f_n = self._model_force(f_n, lat, h)
         sub = max(1, int(math.ceil(T / 1.0)))
-        return batched(lambda X: la.propagate(X, f_n, v_n, lat, h, T, substeps=sub, C_b_n=C))
+        C_nab = C if self.has_accel_bias else None
+        if self.i_sf is None:
+            return batched(lambda X: la.propagate(X, f_n, v_n, lat, h, T, substeps=sub,
+                                                  C_b_n=C_nab))
+        # gyro scale-factor states (:mod:`.gyro_scale`): the drift the interval sees is the
+        # bias plus C~ diag(w_b) ds, both constant over it, resolved in the computed frame
+        C_w = C * self._interval_rate(T)
+        n0 = self.n0
+
+        def fx(X):
+            Y = X.copy()
+            Y[I_EPS] += C_w @ X[self.i_sf]
+            Y[:n0] = la.propagate(Y[:n0], f_n, v_n, lat, h, T, substeps=sub, C_b_n=C_nab)
+            Y[I_EPS] = X[I_EPS]
+            return Y
+        return batched(fx)
 
     def _interval_ended(self, T):
         """Turn the drift with the computed attitude since it was last turned.
@@ -291,6 +315,7 @@ class MovingBaseAlignment(GnssAidedEngine):
         """
         super()._interval_ended(T)
         self._count_lost(T)
+        self._scale_states_due()
         if not self.drift_in_body:
             return
         C = self.mech.C_b_n
@@ -317,7 +342,8 @@ class MovingBaseAlignment(GnssAidedEngine):
         lon = m.lon - m.v_n[0] * back / ((R_N + m.h) * math.cos(m.lat))
         z = [(lon - fix.lon) * (R_N + m.h) * math.cos(m.lat), (lat - fix.lat) * (R_M + m.h)]
         idx = [0, 1]
-        if self.use_velocity and fix.v_n is not None:
+        self.velocity_measured = self.use_velocity and fix.v_n is not None
+        if self.velocity_measured:
             z += [m.v_n[0] - fix.v_n[0], m.v_n[1] - fix.v_n[1]]
             idx += [2, 3]
         return np.array(z), np.array(idx)
@@ -330,6 +356,7 @@ class MovingBaseAlignment(GnssAidedEngine):
         """
         m, kf = self.mech, self.kf
         x = kf.x
+        self._feed_back_scale(x)            # into the compensation (:mod:`.gyro_scale`)
         C_n_np = la.C_n_nprime(x[I_PHI])
         m.C_b_n = reorthonormalize(C_n_np.T @ m.C_b_n)
         self._C_drift = m.C_b_n.copy()      # the drift is turned by C_n_np^T below
@@ -350,12 +377,27 @@ class MovingBaseAlignment(GnssAidedEngine):
         T[I_EPS, I_EPS] = C_n_np.T
         kf.transform(T)
         kf.x[:7] = 0.0
+        if self.i_sf is not None:
+            kf.x[self.i_sf] = 0.0
+
+    def _correct_imu(self, dtheta, dv, dt):
+        """Divide the gyro increments by ``1 + s`` of the scale-factor states (:mod:`.gyro_scale`).
+
+        The drift and the accelerometer bias stay in the filter (module docstring).
+        """
+        return self._compensate_scale(dtheta), dv
+
+    def attitude_cov(self):
+        """As every aided engine's, with the scale-factor states' floor (:mod:`.gyro_scale`)."""
+        P = super().attitude_cov()
+        return P if self.i_sf is None else self._heading_floor(P)
 
     def status(self):
         """Filter internals for diagnostics; with 13 states the accelerometer bias estimate."""
         s = super().status()
         if self.has_accel_bias:
             s['accel_bias_ug'] = [float(v) for v in self.kf.x[I_NAB] / UG]
+        s.update(self.scale_status())
         return s
 
     @staticmethod

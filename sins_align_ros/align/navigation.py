@@ -91,7 +91,6 @@ from .aided import ANGLE_UNKNOWN_VAR, GnssAidedEngine
 # the model; then the linear model's own convergence is let try (module docstring)
 from .gnss_gate import GnssGate
 from .gyro_scale import GyroScaleStates
-from .rotation_error import COHERENCE_FACTOR
 from .params import NAV_FILTERS
 
 #: heading 1-sigma (deg) up to which the linear filters' small-angle model holds
@@ -481,32 +480,6 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
         elif self.i_sf is not None:
             P = self._heading_floor(P)
         return P
-
-    def _heading_floor(self, P):
-        """Return P (3, 3) with its heading variance at least the accelerometer misalignment's.
-
-        With the gyro scale factors as states (:mod:`.gyro_scale`) the heading is no longer
-        held up by their noise at every turn, and it comes from the GNSS velocity in the
-        vehicle's accelerations, where an accelerometer axis misalignment ``m`` turns a
-        forward acceleration into a sideways one: a heading error of ``m`` rad, the same
-        constant at every braking, which the force-proportional noise (:mod:`.force_error`)
-        lets the filter average down as if it were white. Measured (car:rtk, raw AHRS triads
-        told right, 10 seeds, m = 0.5 %): heading sigma 14' at the end, and one run 30-50'
-        off under 11-18' for 4 min. So the published heading variance is at least ``m^2``
-        (the told misalignment; row and column scaled, P stays semi-definite). A heading
-        measured directly (an external heading, a GNSS compass's 0.1 deg) does not come from
-        the accelerations: once a heading fix better than the floor has been used, there is
-        none (a GNSS compass of 0.2 deg at 1 Hz, seed 003's car: 0.2 deg held at the fix's
-        own sigma otherwise, where the filter averaging its fixes reaches 0.1).
-        """
-        if self._force_sigma is None:
-            return P
-        floor = (self._force_sigma[1] / COHERENCE_FACTOR) ** 2
-        if not 0.0 < P[2, 2] < floor or self.min_heading_fix_var < floor:
-            return P
-        s = np.ones(3)
-        s[2] = math.sqrt(floor / P[2, 2])
-        return P * np.outer(s, s)
 
     @property
     def heading_claimed(self):

@@ -162,6 +162,29 @@ class ASCKF:
         except np.linalg.LinAlgError:
             self.S = tria(sqrt_psd(value))
 
+    def append_states(self, var):
+        """Append uncorrelated zero-mean random constants of variances ``var`` (k,).
+
+        The factor grows by a diagonal block, ``S <- [[S, 0], [0, diag(sqrt(var))]]``, still
+        lower triangular, so ``S S^T`` is ``P`` with the new block and no Cholesky is taken
+        again; the new states get no process noise and no fading (proportion 0, as the
+        drift's in ``align/moving.py``; their fading cap is ``var``).
+        """
+        var = np.asarray(var, dtype=float)
+        n, k = len(self.x), len(var)
+        S = np.zeros((n + k, n + k))
+        S[:n, :n] = self.S
+        S[n:, n:] = np.diag(np.sqrt(var))
+        Q = np.zeros((n + k, n + k))
+        Q[:n, :n] = self.Q
+        self.x, self.S, self.Q = np.r_[self.x, np.zeros(k)], S, Q
+        self._alpha = np.r_[self._alpha, np.zeros(k)]
+        for tracking in self._tracking.values():
+            tracking.alpha = self._alpha
+        if self.var_max is not None:
+            self.var_max = np.r_[self.var_max, var]
+        self.lam = np.r_[self.lam, np.ones(k)]
+
     def transform(self, T):
         """Change state coordinates: ``x <- T x``, ``P <- T P T^T`` (square-root form)."""
         self.x = T @ self.x
