@@ -27,9 +27,10 @@ triad's figure is the median of its three axes (a turning vehicle's vertical axi
 its turns' starts and ends, which are not cubic). It replaces the sample-level noise only
 where it is less than half of it (:func:`walk_or_noise`): where the two agree the noise
 is white and the sample-level figure stands. For white noise alone every span
-gives ``q`` (the simulated cars: 2.9-3.2 deg/sqrt(h) from a 3.0 gyro); the robot's
-vibrating triads give 10.7 (the simulation's 3.0 or 0.42 plus the jitter still left over
-16 s): an upper bound, so never narrower than the data support.
+gives ``q`` (the simulated cars: 2.8-3.2 deg/sqrt(h) from a 3.0 gyro); the robot's
+vibrating triads give 8.5-9.4 over a 60-s window, 16-17.6 over the motion check's 20 s
+(the simulation's 3.0 or 0.42 plus the jitter still left over the longest span that
+fits): an upper bound, so never narrower than the data support.
 
 Not from a seed (their IMUs are still or on ships, where the two figures agree); the
 idea is the Allan variance's (IEEE Std 952: angle random walk read where the Allan
