@@ -167,8 +167,9 @@ class GyroScaleStates:
     def _heading_floor(self, P):
         """Return P (3, 3) with its heading variance at least the accelerometer misalignment's.
 
-        Both engines with the states apply it to the published attitude covariance
-        (``IntegratedNavigation.attitude_cov``, ``MovingBaseAlignment.attitude_cov``).
+        Both engines apply it to the published attitude covariance
+        (``IntegratedNavigation.attitude_cov``, ``MovingBaseAlignment.attitude_cov``); P is
+        returned as it is until the scale factors are states.
 
         With the gyro scale factors as states (:mod:`.gyro_scale`) the heading is no longer
         held up by their noise at every turn, and it comes from the GNSS velocity in the
@@ -184,7 +185,7 @@ class GyroScaleStates:
         none (a GNSS compass of 0.2 deg at 1 Hz, seed 003's car: 0.2 deg held at the fix's
         own sigma otherwise, where the filter averaging its fixes reaches 0.1).
         """
-        if self._force_sigma is None:
+        if self.i_sf is None or self._force_sigma is None:
             return P
         floor = (self._force_sigma[1] / COHERENCE_FACTOR) ** 2
         if not 0.0 < P[2, 2] < floor or self.min_heading_fix_var < floor:

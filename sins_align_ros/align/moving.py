@@ -389,8 +389,7 @@ class MovingBaseAlignment(GyroScaleStates, GnssAidedEngine):
 
     def attitude_cov(self):
         """As every aided engine's, with the scale-factor states' floor (:mod:`.gyro_scale`)."""
-        P = super().attitude_cov()
-        return P if self.i_sf is None else self._heading_floor(P)
+        return self._heading_floor(super().attitude_cov())
 
     def status(self):
         """Filter internals for diagnostics; with 13 states the accelerometer bias estimate."""

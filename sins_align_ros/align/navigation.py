@@ -87,8 +87,6 @@ from ..nav.frames import (dcm_to_euler, euler_to_dcm, orthonormalize, reorthonor
                           rotvec_to_dcm, wrap_pi)
 from ..units import DPH, UG
 from .aided import ANGLE_UNKNOWN_VAR, GnssAidedEngine
-# seconds a lost heading waits for a nonlinear acquisition with the horizontal force out of
-# the model; then the linear model's own convergence is let try (module docstring)
 from .gnss_gate import GnssGate
 from .gyro_scale import GyroScaleStates
 from .params import NAV_FILTERS
@@ -477,7 +475,7 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
             P = P.copy()
             P[2, :2] = P[:2, 2] = 0.0
             P[2, 2] = ANGLE_UNKNOWN_VAR
-        elif self.i_sf is not None:
+        else:
             P = self._heading_floor(P)
         return P
 

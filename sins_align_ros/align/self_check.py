@@ -22,8 +22,8 @@ the finding is reported:
   The grade is judged by it; ``gyro_arw_dpsh``, which the filters take as a random walk
   of the attitude, is widened only to the smaller of it and the random walk's bound over
   spans of seconds (:func:`~.angle_walk.walk_density`): a vibrating mount's jitter is
-  bounded in angle (a skid-steer robot: 37 deg/sqrt(h) at the sample level, at most 9-11
-  over seconds, from a 3 or 0.42 deg/sqrt(h) gyro).
+  bounded in angle (a skid-steer robot: 37 deg/sqrt(h) at the sample level, at most
+  8.5-9.4 over seconds, from a 3 or 0.42 deg/sqrt(h) gyro).
 * **Biases on a still base** (the window shows no motion once the noise is right):
   the mean specific force must have the magnitude of normal gravity, so
   ``|f| - g`` is the accelerometer bias along the vertical; the mean rate along the
@@ -627,10 +627,10 @@ def _noise(out, cfg, arw, vrw, moving, walk=None):
     arw_cfg = cfg['gyro_arw_dpsh'] * DPSH
     vrw_cfg = cfg['accel_vrw_ug_rthz'] * UG
     if arw > NOISE_RATIO * arw_cfg:
-        bounded = q < arw
-        part = (f', its random walk over seconds at most {q / DPSH:.3g} (the rest bounded in '
-                'angle: vibration)' if bounded else '')
         if q > NOISE_RATIO * arw_cfg:
+            bounded = q < arw
+            part = (f', its random walk over seconds at most {q / DPSH:.3g} (the rest bounded '
+                    'in angle: vibration)' if bounded else '')
             out.widened['gyro_arw_dpsh'] = q / DPSH
             out.findings.append(f'gyro white noise {arw / DPSH:.3g} deg/sqrt(h) in the data'
                                 f'{part}, {cfg["gyro_arw_dpsh"]:.3g} configured: '
