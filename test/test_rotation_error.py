@@ -47,13 +47,36 @@ def test_a_turn_adds_its_whole_coherent_error_not_a_white_share():
     s, m = HEADING_COHERENCE_FACTOR * s, COHERENCE_FACTOR * m
     Q = _turn(eng, math.pi / 2, 30, T=0.0)       # no forgetting within the turn
     phi = Q[3:6, 3:6]
-    # level body: body z is up; the x, y leak of m each, turned by the yaw into E, N
+    # level body: body z is up; the x, y leak of m each, turned by the yaw into E, N, as the
+    # tilt it leaves over a quarter turn: |C(90 deg) - I| m = 2 sin(45 deg) m per axis
     assert phi[2, 2] == pytest.approx((s * math.pi / 2) ** 2, rel=1e-12)
-    assert phi[0, 0] + phi[1, 1] == pytest.approx(2 * (m * math.pi / 2) ** 2, rel=1e-12)
+    assert phi[0, 0] + phi[1, 1] == pytest.approx(2 * (2 * math.sin(math.pi / 4) * m) ** 2,
+                                                  rel=1e-12)
     assert np.all(Q[:3] == 0.0) and np.all(Q[6:] == 0.0)
     # white noise over the 30 intervals would have given 1/30 of it
     white = 30 * (s * math.pi / 2 / 30) ** 2
     assert phi[2, 2] == pytest.approx(30 * white)
+
+
+def test_the_yaw_rates_leak_into_tilt_is_bounded_however_far_the_vehicle_turns():
+    """A whole circle within the memory: the tilt rows add ``(2 m)^2`` each, no more.
+
+    The leak ``m`` of the yaw rate into each horizontal gyro tilts the attitude by
+    ``(C(psi) - C(psi0)) [z x] m``, at most ``2 m`` (half way round) and back to zero after
+    a whole turn; ``m^2 A_z^2`` would have added ``(2 pi m)^2``, 9.9 times as much.
+    The heading's scale-factor share keeps growing with the rotation.
+    """
+    s, m = 0.02, 0.005
+    eng = _Engine()
+    eng.set_rotation_error(s, m)
+    s, m = HEADING_COHERENCE_FACTOR * s, COHERENCE_FACTOR * m
+    Q = _turn(eng, 2 * math.pi, 120, T=0.0)
+    phi = Q[3:6, 3:6]
+    assert phi[0, 0] + phi[1, 1] == pytest.approx(2 * (2 * m) ** 2, rel=1e-12)
+    assert phi[2, 2] == pytest.approx((s * 2 * math.pi) ** 2, rel=1e-12)
+    # a second circle adds its half turn's (2 m)^2 again, not (4 pi m)^2 - (2 pi m)^2
+    Q2 = _turn(eng, 2 * math.pi, 120, T=0.0)[3:6, 3:6]
+    assert Q2[0, 0] + Q2[1, 1] == pytest.approx(2 * (2 * m) ** 2, rel=1e-9)
 
 
 def test_turning_back_adds_nothing_and_the_memory_fades():
