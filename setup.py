@@ -13,7 +13,7 @@ PACKAGE = 'sins_align_ros'
 class InstallWithKernels(install):
     """``install``, then the kernels compiled ahead of time into the installed package.
 
-    ``python -m sins_align_ros.nav.aot`` (numba.pycc and a C compiler) writes
+    ``python -m sins_align_ros.cli.build_kernels`` (numba.pycc and a C compiler) writes
     ``nav/_aot_kernels`` beside the installed sources, so that no process of the package
     imports numba (about 0.7 s of every start). Where it cannot be built the install
     goes on and the kernels are compiled just in time by numba, as before.
@@ -23,7 +23,7 @@ class InstallWithKernels(install):
         super().run()
         lib = os.path.abspath(self.install_lib)
         env = dict(os.environ, PYTHONPATH=lib + os.pathsep + os.environ.get('PYTHONPATH', ''))
-        done = subprocess.run([sys.executable, '-m', f'{PACKAGE}.nav.aot',
+        done = subprocess.run([sys.executable, '-m', f'{PACKAGE}.cli.build_kernels',
                                os.path.join(lib, PACKAGE)], cwd=lib, env=env)
         if done.returncode != 0:
             print(f'{PACKAGE}: kernels not compiled ahead of time; numba will compile them '

@@ -1,8 +1,8 @@
 """sins_align_ros: initial alignment of a strapdown inertial navigation system for ROS 2.
 
-Layers (see docs/design.md): ``sim`` and ``nav`` at the bottom, then ``filters``,
-``models``, ``align``, ``io``, ``cli`` and finally ``ros``. Only ``ros`` imports
-rclpy or message packages.
+Layers, top to bottom (docs/design.md; checked by the contracts in ``.importlinter``):
+``ros`` and ``cli``, ``eval``, ``io``, ``align`` and ``sim``, ``models``, ``nav`` and
+``filters``, ``units``. Only ``ros`` imports rclpy or message packages.
 """
 
 __version__ = '0.1.0'

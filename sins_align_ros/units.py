@@ -4,9 +4,7 @@ Inside the package every quantity is SI and radians; multiply a value in the uni
 named here by the constant to get SI (``5.0 * DPH`` is 5 deg/h in rad/s), divide to
 go back. Frame and Euler conventions live in :mod:`sins_align_ros.nav.frames`.
 
-Import them from here: :mod:`~sins_align_ros.nav.frames` (``DEG``, ``ARCMIN``,
-``ARCSEC``), :mod:`~sins_align_ros.nav.earth` (``G0``) and :mod:`~sins_align_ros.sim.imu`
-(``DPH``, ``DPSH``, ``UG``) only re-export them for older imports.
+Import them from here: no other module re-exports them.
 """
 import math
 

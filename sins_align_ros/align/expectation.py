@@ -28,8 +28,9 @@ one of two ways, by what that covariance depends on:
 * **Moving base, other filters** (the cubature and variational filters on the
   large-azimuth model). The covariance depends on the manoeuvres, which
   no model of the sensors knows in advance: the forecast extrapolates the filter's own
-  variance history (:class:`SigmaHistory`, the last :data:`TREND_S` seconds) per axis as a
-  scalar Riccati equation ``dP/dt = q - r P^2`` above the sensors' limit: ``q`` the gyro's
+  variance history (:class:`~.sigma_history.SigmaHistory`, the last
+  :data:`~.sigma_history.TREND_S` seconds) per axis as a scalar Riccati equation
+  ``dP/dt = q - r P^2`` above the sensors' limit: ``q`` the gyro's
   angle random walk and bias drift (configured, self-checked), ``r`` the information rate
   the motion has given lately (fitted), the limit ``P_min`` that of a heading found from
   Earth rate (``eps / (W cos L)``, seed 002 eq. 15) where the gyro can see Earth rate. The
@@ -46,7 +47,6 @@ the reason and the best 1-sigma expected.
 """
 import copy
 import math
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -59,6 +59,8 @@ from . import coarse_stage
 from .aided import ANGLE_UNKNOWN_VAR
 from .convergence import MIN_SPAN_S, SHRINK, WINDOW_S
 from .factory import is_aided
+from .fine_stage import Clock
+from .handover import fine_stage_for
 from .motion import choose_filter, gnss_motion
 
 #: shadow filter epochs per second (still base)
@@ -69,12 +71,8 @@ LATE_STEP_S = 10.0
 HORIZON_S = 3600.0
 #: a still-base forecast is made again after this much data (a widening, a heading source)
 REFRESH_S = 30.0
-#: the moving-base trend is fitted over this much history, s
-TREND_S = 12.0
-#: ... and needs at least this much of it, s
+#: the moving-base trend needs at least this much variance history, s
 TREND_MIN_S = 8.0
-#: spacing of the variance history, s
-HISTORY_STEP_S = 1.0
 #: what a forecast is based on
 STILL, TREND, DONE = 'still-base covariance forecast', 'trend of the filter sigma', 'aligned'
 MOTION = 'filter covariance run on with the last interval\'s motion'
@@ -105,28 +103,6 @@ class Expectation:
     sigma: np.ndarray
     basis: str
     note: str = ''
-
-
-class SigmaHistory:
-    """The fine stage's misalignment variances (E, N, U), one per :data:`HISTORY_STEP_S`."""
-
-    def __init__(self):
-        self.t = deque()
-        self.P = deque()
-
-    def add(self, t, P_diag):
-        """Record variances (3,) rad^2 at ``t`` (dropped when the last is too recent)."""
-        if self.t and t - self.t[-1] < HISTORY_STEP_S:
-            return
-        self.t.append(float(t))
-        self.P.append(np.array(P_diag, dtype=float))
-        while self.t[0] < t - TREND_S:
-            self.t.popleft()
-            self.P.popleft()
-
-    def arrays(self):
-        """Return ``(t (M,), P (M, 3))``."""
-        return np.array(self.t), np.array(self.P).reshape(-1, 3)
 
 
 def process_noise(noise, cfg):
@@ -464,8 +440,6 @@ def _heading_source(p):
 
 def _new_stage(p):
     """Return a fine stage as the pipeline would start it after coarse, and its start stamp."""
-    from .fine_stage import Clock                  # fine_stage imports this module
-    from .handover import fine_stage_for           # (which imports fine_stage)
     cfg = dict(p.cfg)
     cfg['fine_filter'] = choose_filter(cfg, False)
     position = p.position if p.position is not None else p.gnss.position(cfg, False)[0]

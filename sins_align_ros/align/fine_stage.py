@@ -58,13 +58,13 @@ import numpy as np
 from .aided import ANGLE_UNKNOWN_VAR, cap_angles
 from .consistency import ConsistencyMonitor
 from .convergence import ConvergenceMonitor
-from .expectation import SigmaHistory
 from .fine_epochs import EpochUpdates
 from .gnss_gate import FilterDiverged
 from .imu_input import intervals
 from . import course_heading, motion_check, slow_monitor
 from .output import Rows, one_row
 from .sideslip import SideslipCheck
+from .sigma_history import SigmaHistory
 from .still_watch import StillWatch
 from ..units import DPH
 

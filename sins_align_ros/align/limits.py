@@ -13,8 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..nav import earth
-from ..nav.frames import DEG, euler_to_dcm
-from ..sim.imu import DPH, DPSH, UG
+from ..nav.frames import euler_to_dcm
+from ..units import DEG, DPH, DPSH, UG
 
 
 @dataclass

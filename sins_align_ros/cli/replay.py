@@ -27,7 +27,8 @@ from ..io.bag import BagError, read_bag
 from ..io.psins import PsinsFormatError, read_psins
 from ..io.report import plot_report, truth_euler_at
 from ..io.results import write_csv
-from ..nav.frames import DEG, yaw_to_heading
+from ..nav.frames import yaw_to_heading
+from ..units import DEG
 
 _CHUNK = 2000
 

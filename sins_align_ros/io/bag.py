@@ -5,13 +5,15 @@ ROS 2 Jazzy type store. Topics are matched by name or by name suffix, so
 namespaced recordings (``/ship/imu/data_raw``) work without options.
 """
 import difflib
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..nav import earth
 from ..nav.frames import euler_to_quat
+from .bag_data import BagEvent, BagRecording
+from .bag_db3 import db3_file, read_db3
+from .cdr import decode_imu
 
 IMU_TYPE = 'sensor_msgs/msg/Imu'
 FIX_TYPE = 'sensor_msgs/msg/NavSatFix'
@@ -21,24 +23,6 @@ ODOM_TYPE = 'nav_msgs/msg/Odometry'
 
 class BagError(ValueError):
     """The bag cannot be replayed; the message says why in one line."""
-
-
-@dataclass
-class BagEvent:
-    """One message in stamp order: ``kind`` is 'imu', 'fix', 'vel' or 'truth'; ``t`` its stamp (s).
-
-    ``data``: imu ``(w, f, frame_id, missing)`` with ``missing`` true when the
-    message marks its angular velocity or acceleration as not provided
-    (covariance[0] = -1); fix ``(status, lat_deg, lon_deg, h, pos_var)``
-    with ``pos_var`` (east, north) m^2 as reported, or None when the covariance type
-    is unknown; vel ``(v_enu, vel_var)`` with ``vel_var`` (east, north) (m/s)^2 as
-    reported (checked by :class:`~sins_align_ros.align.gnss_input.GnssInput`);
-    truth ``(q_xyzw,)``.
-    """
-
-    kind: str
-    t: float
-    data: tuple
 
 
 def _stamp(header):
@@ -118,27 +102,6 @@ def iter_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='
         reader.close()
 
 
-@dataclass
-class BagRecording:
-    """A bag read at once: the IMU as arrays, everything else as :class:`BagEvent`.
-
-    ``t`` (N,), ``w`` (N, 3), ``f`` (N, 3) and ``missing`` (N,) are the IMU messages in
-    recording order (as ``iter_bag``'s imu events; ``frame_id`` is not kept);
-    ``events`` the fix, velocity and truth messages in recording order and
-    ``imu_before`` (len(events),) how many IMU messages came before each, so that the
-    two interleave exactly as recorded. ``error``: why reading stopped early (a
-    truncated or corrupt bag: what came before is kept), else None.
-    """
-
-    t: np.ndarray
-    w: np.ndarray
-    f: np.ndarray
-    missing: np.ndarray
-    events: list
-    imu_before: np.ndarray
-    error: str = None
-
-
 def read_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='sim/truth',
              vel_topic='gnss/vel', required=()):
     """Read a rosbag2 folder or .mcap file at once into a :class:`BagRecording`.
@@ -153,8 +116,6 @@ def read_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='
     except that a fault part-way through is returned in ``error`` with what was read
     before it.
     """
-    from .bag_db3 import db3_file, read_db3
-    from .cdr import decode_imu
     db = db3_file(path)
     if db is not None:
         rec = read_db3(db, lambda topics: _topics(topics, imu_topic, fix_topic, truth_topic,

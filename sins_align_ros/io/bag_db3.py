@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .bag import BagEvent, BagRecording
+from .bag_data import BagEvent, BagRecording
 from .cdr import decode_fix, decode_imu, decode_odometry_q, decode_twist
 
 #: what :func:`~sins_align_ros.io.bag._match` needs of a topic
@@ -86,7 +86,7 @@ def read_db3(db, select):
 
     ``select(topics)`` maps the bag's topics (a list of :data:`Topic`) to the matched
     ``(imu, fix, truth, vel)`` lists (raising ``BagError`` as the general reader does).
-    Returns a :class:`~sins_align_ros.io.bag.BagRecording`, or None where this path
+    Returns a :class:`~sins_align_ros.io.bag_data.BagRecording`, or None where this path
     does not apply (see the module docstring).
     """
     try:

@@ -20,9 +20,9 @@ import numpy as np
 
 from ..nav import earth
 from ..nav.frames import euler_rates_to_w_nb_b, euler_to_dcm, euler_to_quat
-from ..sim.imu import DPSH, UG
 from ..sim.presets import SENSOR_GRADES, scenario
 from ..sim.scenario import ScenarioStream
+from ..units import DPSH, UG
 
 IMU_TYPE = 'sensor_msgs/msg/Imu'
 FIX_TYPE = 'sensor_msgs/msg/NavSatFix'

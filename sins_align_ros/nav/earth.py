@@ -7,12 +7,11 @@ Vector results keep the trailing axis of length 3.
 References: NIMA TR8350.2 (WGS-84 constants, Somigliana normal gravity and the
 free-air height correction); Groves, *Principles of GNSS, Inertial and
 Multisensor Integrated Navigation*, ch. 2 (radii of curvature, transport rate).
+
+The conventional standard gravity ``G0`` (the micro-g and g of datasheets), not the
+normal gravity here, is :mod:`sins_align_ros.units`'s.
 """
 import numpy as np
-
-# G0, the conventional standard gravity (unit conversion of micro-g and g only, not the
-# normal gravity below), is defined in sins_align_ros.units
-from ..units import G0  # noqa: F401 (re-exported)
 
 #: semi-major axis (m)
 A = 6378137.0

@@ -27,7 +27,6 @@ import math
 
 import numpy as np
 
-from ..units import ARCMIN, ARCSEC, DEG  # noqa: F401 (re-exported)
 from . import kernels
 
 # --- fixed frame changes (vector components) --------------------------------

@@ -8,11 +8,11 @@ keeps the two equal to round-off (test_mechanization.py).
 
 Three ways the same functions run, chosen once at import:
 
-1. **Ahead of time** (:mod:`.aot`): the kernels compiled by ``numba.pycc`` into the
-   extension module ``nav/_aot_kernels`` when the package is set up. Loading it takes a
-   millisecond and does not import numba, whose import and first compiled call
-   (its type registries, and ``scipy.linalg`` for its BLAS check) cost about 0.7 s of
-   every process start (issue 22). Used only while ``_aot_kernels.sha1`` beside it
+1. **Ahead of time** (:mod:`~sins_align_ros.cli.build_kernels`): the kernels compiled by
+   ``numba.pycc`` into the extension module ``nav/_aot_kernels`` when the package is set
+   up. Loading it takes a millisecond and does not import numba, whose import and first
+   compiled call (its type registries, and ``scipy.linalg`` for its BLAS check) cost about
+   0.7 s of every process start (issue 22). Used only while ``_aot_kernels.sha1`` beside it
    matches the kernels' sources (:func:`source_hash`): an edit makes it stale and the
    next path is taken until it is built again (``SINS_ALIGN_NO_AOT=1`` skips it).
 2. **Just in time**: numba compiles at the first call and caches on disk
@@ -42,7 +42,8 @@ AOT_SOURCES = ('nav/kernels.py', 'nav/earth.py', 'filters/cubature.py',
 AOT_MODULE = '_aot_kernels'
 _PACKAGE = Path(__file__).resolve().parents[1]
 _NO_JIT = os.environ.get('SINS_ALIGN_NO_JIT', '') == '1'
-#: set by :mod:`.aot` while it compiles: every kernel a plain numba function, no cache
+#: set by :mod:`~sins_align_ros.cli.build_kernels` while it compiles: every kernel a plain
+#: numba function, no cache
 BUILDING_AOT = os.environ.get('SINS_ALIGN_AOT_BUILD', '') == '1'
 
 

@@ -29,7 +29,7 @@ from scipy.signal import lfilter
 
 from ..nav import earth
 from ..nav.frames import euler_rates_to_w_nb_b, euler_to_dcm
-from ..units import ARCSEC, DEG, DPH, DPSH, UG  # DPH, DPSH, UG also imported from here
+from ..units import ARCSEC, DEG, DPH, DPSH, UG
 from .trajectory import PositionIntegrator
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(4)

@@ -1,14 +1,16 @@
 """Build the ahead-of-time kernel module (``nav/_aot_kernels``) with ``numba.pycc``.
 
-    python -m sins_align_ros.nav.aot [PACKAGE_DIR ...]
+    python -m sins_align_ros.cli.build_kernels [PACKAGE_DIR ...]
 
-compiles every kernel declared with a signature (:data:`~.kernels.EXPORTS`) into one
-extension module in ``PACKAGE_DIR/nav`` (default: this package's own) and writes
-``_aot_kernels.sha1``, the hash of the sources it was built from, which
-:mod:`.kernels` checks before it uses the module. Needs numba and a C compiler at
-build time only; the module itself needs numpy alone. ``scripts/setup.sh`` runs it
-for the source tree and the colcon install; where it cannot run, the kernels stay
-just-in-time compiled (the same numbers, a slower start).
+compiles every kernel declared with a signature
+(:data:`~sins_align_ros.nav.kernels.EXPORTS`) into one extension module in
+``PACKAGE_DIR/nav`` (default: this package's own) and writes ``_aot_kernels.sha1``, the
+hash of the sources it was built from, which :mod:`~sins_align_ros.nav.kernels` checks
+before it uses the module. Needs numba and a C compiler at build time only; the module
+itself needs numpy alone. ``scripts/setup.sh`` runs it for the source tree and the colcon
+install; where it cannot run, the kernels stay just-in-time compiled (the same numbers, a
+slower start). A build tool above the layers it collects kernels from (filters, models,
+io, nav), so that ``nav`` imports none of them.
 
 ``numba.pycc`` is marked for deprecation by numba (its replacement is not released);
 where a numba without it is installed this exits with a message and the package keeps
@@ -30,7 +32,7 @@ def _compile(workdir):
     from ..filters import cubature  # noqa: F401 (their kernels join EXPORTS on import)
     from ..io import fixed_text  # noqa: F401
     from ..models import large_azimuth, loosely_coupled  # noqa: F401
-    from . import kernels
+    from ..nav import kernels
     assert kernels.BUILDING_AOT and kernels.AOT is None
     cc = CC(kernels.AOT_MODULE)
     cc.output_dir = str(workdir)
@@ -60,7 +62,7 @@ def main(argv=None):
                 shutil.copy2(module, nav / module.name)
                 (nav / '_aot_kernels.sha1').write_text(digest + '\n')
     except Exception as exc:          # no numba.pycc, no compiler, ...: stay just in time
-        print(f'sins_align_ros.nav.aot: kernels not compiled ahead of time '
+        print(f'sins_align_ros.cli.build_kernels: kernels not compiled ahead of time '
               f'({type(exc).__name__}: {exc}); numba will compile them at first use',
               file=sys.stderr)
         return 1
