@@ -15,20 +15,20 @@ error a turn left within such a time, and a vehicle circling for minutes must no
 up a variance without bound). One term is bounded instead (:func:`coherent_variance`'s
 ``yaw_leak_bounded``): the horizontal gyros' share ``m`` of the yaw rate tilts the
 attitude by ``(C(psi) - C(psi0)) [z x] m`` over a heading change (the tilt no turn can
-find, below), of size ``2 |sin((psi - psi0) / 2)| m``, never more than ``2 m`` however far
-the vehicle turns; ``m^2 A_z^2`` said ``m |A_z|``, 3.1 times that for a half turn and
-growing. So the tilt rows take ``4 m^2 sin^2(A_z / 2)`` for it. Measured
-(bench/integrity.py robot:posonly, kf, 10 seeds per cell, plain MEMS and raw AHRS
-triads told right or the defaults): a skid-steer robot turning 100-180 deg every 10-20 s
-had its tilt sigma at the end at 80-97' (a variance that two same-way turns within the
-memory put at 2.6 deg), with the tilt error 11-23' RMS; bounded, 44-52', no run
-silent-wrong; car:consumer (single 60-100 deg junction turns) moved by at most 0.2' in
-tilt RMS and sigma. Each interval adds ``var(A + dA) - var(A)`` (never less than zero),
-turned into the navigation frame with the attitude, to the misalignment's process noise:
-a 90 deg turn adds the whole ``(s * 90 deg)^2`` of a constant scale factor, not the
-``1/N`` of it that white noise over its N intervals would; the sigmas are taken
-:data:`COHERENCE_FACTOR` (2) times the told ones, since the filter still reads part of
-the coherent error as information (the heading's once,
+find, below), of size ``2 |sin((psi - psi0) / 2)| m``, never more than ``2 m`` however
+far the vehicle turns; ``m^2 A_z^2`` said ``m |A_z|``, 1.6 times that for a half turn,
+and 6.3 m for a whole one, whose tilt is back to zero. So the tilt rows take ``4 m^2
+sin^2(A_z / 2)`` for it. Measured (bench/integrity.py robot:posonly, kf, 10 seeds per
+cell, plain MEMS and raw AHRS triads told right or the defaults): a skid-steer robot
+turning 100-180 deg every 10-20 s had its tilt sigma at the end at 80-97' (a variance
+that two same-way turns within the memory put at 2.6 deg), with the tilt error 11-23'
+RMS; bounded, 44-52', no run silent-wrong; car:consumer (single 60-100 deg junction
+turns) moved by at most 0.2' in tilt RMS and sigma. Each interval adds ``var(A + dA) -
+var(A)`` (never less than zero), turned into the navigation frame with the attitude, to
+the misalignment's process noise: a 90 deg turn adds the whole ``(s * 90 deg)^2`` of a
+constant scale factor, not the ``1/N`` of it that white noise over its N intervals
+would; the sigmas are taken :data:`COHERENCE_FACTOR` (2) times the told ones, since the
+filter still reads part of the coherent error as information (the heading's once,
 :data:`HEADING_COHERENCE_FACTOR`).
 
 Not in the seeds (their IMUs are calibrated): an uncalibrated MEMS AHRS's triads have
