@@ -79,10 +79,6 @@ class GyroScaleStates:
     sf_wanted = 0.0
     #: the last GNSS epoch measured velocity (set by the engine's measurement)
     velocity_measured = False
-    #: the append starts the whole state from zero (:meth:`_append_scale_states`): the
-    #: navigation engine's, which feeds its whole estimate back at each epoch; the seed 000
-    #: engine keeps its drift and accelerometer bias in the filter and sets it False
-    _append_zeroes_state = True
 
     def _take_scale_states(self, scale):
         """Model gyro scale factors of 1-sigma ``scale`` (-) as states: append or widen them.
@@ -126,9 +122,11 @@ class GyroScaleStates:
 
         A square-root filter (``kf.append_states``: the ASCKF) appends them to its factor.
         The states are appended at an interval's end, after the epoch's update and before
-        its feedback: with :attr:`_append_zeroes_state` (the navigation engine's, as it was
-        when the states came in) that epoch's correction is not fed back; changing it moves
-        the ``mvbakf_car`` golden (heading 1.3 deg at its row 264), left for a measurement.
+        its feedback, so the estimate is kept and grows by zeros: the epoch's correction is
+        then fed back as every other epoch's. (Until session 37 the navigation engine
+        started the whole state from zero here, dropping that epoch's correction while P
+        kept the update's shrink: ``mvbakf_car``'s heading moved by up to 1.3 deg when that
+        was mended.)
         """
         n0, kf = self.n, self.kf
         n = n0 + 3
@@ -138,8 +136,7 @@ class GyroScaleStates:
             P, Q = np.zeros((n, n)), np.zeros((n, n))
             P[:n0, :n0], Q[:n0, :n0] = kf.P, kf.Q
             P[n0:, n0:] = np.eye(3) * var
-            x = np.zeros(n) if self._append_zeroes_state else np.r_[kf.x, np.zeros(3)]
-            kf.x, kf.P, kf.Q = x, P, Q
+            kf.x, kf.P, kf.Q = np.r_[kf.x, np.zeros(3)], P, Q
         self.Qc, self._Qc0 = np.r_[self.Qc, np.zeros(3)], np.r_[self._Qc0, np.zeros(3)]
         self._held = np.r_[self._held, np.ones(3, dtype=bool)]
         self.n, self.i_sf, self.sf = n, slice(n0, n), np.zeros(3)

@@ -210,9 +210,6 @@ class MovingBaseAlignment(GyroScaleStates, GnssAidedEngine):
     """
 
     i_phi, i_v, i_eps = I_PHI, I_V, I_EPS
-    #: the drift and accelerometer bias stay in the filter: appending the gyro scale-factor
-    #: states keeps them (:mod:`.gyro_scale`)
-    _append_zeroes_state = False
     #: seed 000's 10-state model has no accelerometer bias: bias / g is added to the
     #: tilt; set per instance (True with 13 states)
     has_accel_bias = False
