@@ -14,7 +14,7 @@ from sins_align_ros.align.consistency import (LONG_BLOCK_S, LONG_BLOCKS, LONG_PR
                                               WINDOW, ConsistencyMonitor, LongHorizonTest)
 from sins_align_ros.align.gnss_markov import (GnssMarkov, increment_var, random_walk_var,
                                               white_equivalent_var)
-from sins_align_ros.align.aided import GnssFix
+from sins_align_ros.align.gnss_fix import GnssFix
 from sins_align_ros.align.moving import MovingBaseAlignment
 from sins_align_ros.eval.integrity import MAX_OUTSIDE, run_integrity
 from sins_align_ros.eval.run import run_pipeline

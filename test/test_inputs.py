@@ -177,7 +177,8 @@ def test_forced_acceptances_without_recovery_restart_alignment():
     eng = MovingBaseAlignment(np.eye(3), np.zeros(3), 0.5, 2.0, 0.0, np.eye(10) * 1e-4,
                               np.zeros(10), np.eye(2) * 0.04, gate_probability=0.9999,
                               gate_max_rejects=2)
-    from sins_align_ros.align.moving import FilterDiverged, GnssFix
+    from sins_align_ros.align.gnss_fix import GnssFix
+    from sins_align_ros.align.moving import FilterDiverged
     eng.step_imu(np.zeros(3), np.array([0.0, 0.0, 9.8 * 0.01]), 0.01)
     with pytest.raises(FilterDiverged, match='disagree'):
         for k in range(1, 20):

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from sins_align_ros.align import params as prm
-from sins_align_ros.align.aided import GnssFix
+from sins_align_ros.align.gnss_fix import GnssFix
 from sins_align_ros.align.installation import Installation
 from sins_align_ros.eval.run import run_pipeline, run_scenario
 from sins_align_ros.eval.scenarios import named, simulate

@@ -15,7 +15,8 @@ import math
 import numpy as np
 import pytest
 
-from sins_align_ros.align.aided import ANGLE_UNKNOWN_VAR, HEADING_PRIOR_MAX, GnssFix
+from sins_align_ros.align.aided import ANGLE_UNKNOWN_VAR, HEADING_PRIOR_MAX
+from sins_align_ros.align.gnss_fix import GnssFix
 from sins_align_ros.align.force import LOST_WAIT_S
 from sins_align_ros.align.heading import HeadingFix
 from sins_align_ros.align.moving import I_PHI, MovingBaseAlignment

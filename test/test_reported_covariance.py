@@ -12,8 +12,7 @@ error, and a receiver reporting a velocity sigma ten times too small is caught.
 import numpy as np
 import pytest
 
-from sins_align_ros.align.aided import GnssFix
-from sins_align_ros.align.factory import uses_reported_covariance
+from sins_align_ros.align.gnss_fix import GnssFix, uses_reported_covariance
 from sins_align_ros.align.gnss_markov import white_equivalent_var
 from sins_align_ros.align.moving import MovingBaseAlignment
 from sins_align_ros.align.navigation import IntegratedNavigation, model_noise

@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from sins_align_ros.align import params as prm
-from sins_align_ros.align.aided import GnssFix
+from sins_align_ros.align.gnss_fix import GnssFix
 from sins_align_ros.align.moving import MovingBaseAlignment
 from sins_align_ros.align.self_check import (JITTER_CHUNK_S, JITTER_COUNTED, SelfCheck,
                                              _velocity_jitter, velocity_jitter)

@@ -33,6 +33,7 @@ from ..units import DPH, UG
 from .epoch_noise import EpochNoise
 from .force import ANGLE_UNKNOWN_VAR, ForceModel  # noqa: F401  (re-exported)
 from .force_error import ForceError
+from .gnss_fix import GnssFix
 from .gnss_gate import FilterDiverged
 from .heading_update import ExternalHeading
 from .rotation_error import RotationError
@@ -89,26 +90,6 @@ def capped_heading_prior(P0, k):
     s = np.ones(len(P0))
     s[k] = HEADING_PRIOR_MAX / math.sqrt(var0)
     return P0 * np.outer(s, s), var0
-
-
-@dataclass
-class GnssFix:
-    """One GNSS epoch: position (rad, rad, m), optional ENU velocity (3,) and variances.
-
-    ``pos_var`` (2,): east and north position variance (m^2) the receiver reports,
-    or None; ``vel_var`` (2,): east and north velocity variance ((m/s)^2) or None;
-    ``arm_var`` (6,): variance per ENU axis, position then velocity, that moving the
-    epoch from the antenna to the IMU may have left (:mod:`.installation`), or None.
-    """
-
-    t: float
-    lat: float
-    lon: float
-    h: float
-    v_n: np.ndarray = None
-    pos_var: np.ndarray = None
-    vel_var: np.ndarray = None
-    arm_var: np.ndarray = None
 
 
 class IntervalSums:

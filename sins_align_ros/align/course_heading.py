@@ -119,7 +119,7 @@ class CourseHeading:
         """Take an accepted GNSS epoch; return the judged leg ``(D, var)`` (rad, rad^2) or None.
 
         ``C_b_n`` (3, 3) the attitude after the update, ``v_n_filter`` (3,) the filter's ENU
-        velocity (m/s), ``fix`` the :class:`~.aided.GnssFix` applied.
+        velocity (m/s), ``fix`` the :class:`~.gnss_fix.GnssFix` applied.
         """
         if self.off:
             return None

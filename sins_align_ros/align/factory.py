@@ -11,6 +11,7 @@ import math
 import numpy as np
 
 from . import params as prm
+from .gnss_fix import uses_reported_covariance
 from .gnss_gate import GnssGate
 from .moving import MovingBaseAlignment, model_noise as moving_model_noise
 from .navigation import (HEADING_LINEAR_MAX_DEG, IntegratedNavigation, gyro_tau,
@@ -44,37 +45,6 @@ def zero_velocity_sigmas(cfg):
 def is_aided(fine_filter):
     """Tell whether ``fine_filter`` is a GNSS-aided (moving-base) filter."""
     return fine_filter in prm.MOVING_FILTERS
-
-
-#: the filters that take R from the GNSS messages (``use_reported_gnss_covariance``): those
-#: whose R the engine sets, seed 000's family and the 15/18-state ``kf`` and ``ukf``; not
-#: the variational-Bayes filters (``vbakf``, ``mvbakf``, ``vbckf``, ``vbch``), whose R is
-#: their own posterior, nor ``asckf`` while its Sage-Husa estimator sets R
-REPORTED_COV_FILTERS = ('ckf', 'asckf', 'kf', 'ukf')
-
-
-def uses_reported_covariance(cfg):
-    """Tell whether the engine of ``cfg['fine_filter']`` takes R from the GNSS messages.
-
-    :data:`REPORTED_COV_FILTERS`, when ``use_reported_gnss_covariance`` is on (``asckf``
-    only without adaptation).
-    """
-    ff = cfg['fine_filter']
-    return bool(cfg['use_reported_gnss_covariance']) and ff in REPORTED_COV_FILTERS and not (
-        ff == 'asckf' and cfg['asckf_adaptive'])
-
-
-def gnss_sigma(cfg, name, reported):
-    """1-sigma of GNSS ``name`` (``gnss_pos_sigma_m``, ``gnss_vel_sigma_mps``) the engine uses.
-
-    ``reported``: east/north variances (2,) the messages reported (empty if none). Their
-    median when the engine takes R from the messages (:func:`uses_reported_covariance`),
-    else the parameter. The coarse stage and the motion judgement weigh GNSS velocity
-    with it, and the self-check compares the data with it.
-    """
-    if uses_reported_covariance(cfg) and len(reported):
-        return math.sqrt(float(np.median([np.mean(v) for v in reported])))
-    return cfg[name]
 
 
 def make_engine(cfg, noise, start, has_velocity, heading_known=True):

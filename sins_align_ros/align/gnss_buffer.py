@@ -22,8 +22,7 @@ import numpy as np
 
 from ..nav import earth
 from ..units import DEG
-from .aided import GnssFix
-from .factory import gnss_sigma
+from .gnss_fix import GnssFix, gnss_sigma
 from .gnss_input import reported_variances
 
 #: GNSS history kept for the moving-base coarse alignment, s
@@ -184,7 +183,7 @@ class GnssBuffer:
     def sigmas_over(self, tt, cfg):
         """GNSS velocity and position 1-sigma (m/s, m) the engine of ``cfg`` uses over ``tt``.
 
-        :func:`~.factory.gnss_sigma` with the variances reported around stamps ``tt``.
+        :func:`~.gnss_fix.gnss_sigma` with the variances reported around stamps ``tt``.
         """
         pos, vel = self.reported_over(tt[0] - 2.0, tt[-1] + 2.0)
         return gnss_sigma(cfg, 'gnss_vel_sigma_mps', vel), gnss_sigma(cfg, 'gnss_pos_sigma_m', pos)

@@ -112,7 +112,7 @@ class Installation:
         return float(np.max(np.linalg.norm(self.arm_velocity_v(w_v), axis=1)))
 
     def fix_to_imu(self, fix, C_v_n, w_v, P_phi, rate_var=0.0):
-        """Return GNSS epoch ``fix`` (a :class:`~.aided.GnssFix`) moved to the IMU.
+        """Return GNSS epoch ``fix`` (a :class:`~.gnss_fix.GnssFix`) moved to the IMU.
 
         ``C_v_n`` (3, 3) the current attitude, ``w_v`` (3,) the vehicle's measured rate
         (rad/s), ``P_phi`` (3, 3) its misalignment covariance about ENU (rad^2),

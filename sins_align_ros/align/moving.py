@@ -79,7 +79,8 @@ from ..models import large_azimuth as la
 from ..nav import earth
 from ..nav.frames import orthonormalize, reorthonormalize
 from ..units import DPH, UG
-from .aided import HEADING_PRIOR_MAX, GnssAidedEngine, GnssFix
+from .aided import HEADING_PRIOR_MAX, GnssAidedEngine
+from .gnss_fix import GnssFix
 from .gnss_gate import FilterDiverged, GnssGate  # noqa: F401  (FilterDiverged re-exported)
 from .gyro_scale import GyroScaleStates
 

@@ -112,7 +112,7 @@ from ..nav.coarse import arm_velocity_b0, detect_motion, velocity_integral_b0
 from ..units import DEG, DPH, DPSH, UG
 from .angle_walk import walk_density, walk_or_noise
 from .arm_check import fit_lever_arm, levelling
-from .factory import gnss_sigma, uses_reported_covariance
+from .gnss_fix import gnss_sigma, uses_reported_covariance
 
 #: a noise estimate widens the configured density when it is this many times larger
 NOISE_RATIO = 2.0

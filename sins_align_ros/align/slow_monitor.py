@@ -236,7 +236,7 @@ class SlowErrorMonitor:
 
         ``C_b_n`` (3, 3) the attitude after the update; ``v_n_filter`` (3,) the filter's
         ENU velocity (m/s); ``var_h`` the published heading variance (rad^2); ``fix`` the
-        :class:`~.aided.GnssFix` applied (moved to the IMU). The yaw rate is the published
+        :class:`~.gnss_fix.GnssFix` applied (moved to the IMU). The yaw rate is the published
         yaw's over :data:`RATE_SPAN` (:class:`YawRate`; a vibrating chassis's sample rates
         are no guide).
         """

@@ -1,0 +1,62 @@
+"""One GNSS epoch as the engines take it, and the noise they take it with.
+
+A record (:class:`GnssFix`) and two rules on the parameters (which filters take R from
+the receiver's reported covariance, :func:`uses_reported_covariance`, and the resulting
+1-sigma, :func:`gnss_sigma`), shared by the inputs (the GNSS buffer), the self-check and
+the engines; it imports no engine, so the inputs need none.
+"""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class GnssFix:
+    """One GNSS epoch: position (rad, rad, m), optional ENU velocity (3,) and variances.
+
+    ``pos_var`` (2,): east and north position variance (m^2) the receiver reports,
+    or None; ``vel_var`` (2,): east and north velocity variance ((m/s)^2) or None;
+    ``arm_var`` (6,): variance per ENU axis, position then velocity, that moving the
+    epoch from the antenna to the IMU may have left (:mod:`.installation`), or None.
+    """
+
+    t: float
+    lat: float
+    lon: float
+    h: float
+    v_n: np.ndarray = None
+    pos_var: np.ndarray = None
+    vel_var: np.ndarray = None
+    arm_var: np.ndarray = None
+
+
+#: the filters that take R from the GNSS messages (``use_reported_gnss_covariance``): those
+#: whose R the engine sets, seed 000's family and the 15/18-state ``kf`` and ``ukf``; not
+#: the variational-Bayes filters (``vbakf``, ``mvbakf``, ``vbckf``, ``vbch``), whose R is
+#: their own posterior, nor ``asckf`` while its Sage-Husa estimator sets R
+REPORTED_COV_FILTERS = ('ckf', 'asckf', 'kf', 'ukf')
+
+
+def uses_reported_covariance(cfg):
+    """Tell whether the engine of ``cfg['fine_filter']`` takes R from the GNSS messages.
+
+    :data:`REPORTED_COV_FILTERS`, when ``use_reported_gnss_covariance`` is on (``asckf``
+    only without adaptation).
+    """
+    ff = cfg['fine_filter']
+    return bool(cfg['use_reported_gnss_covariance']) and ff in REPORTED_COV_FILTERS and not (
+        ff == 'asckf' and cfg['asckf_adaptive'])
+
+
+def gnss_sigma(cfg, name, reported):
+    """1-sigma of GNSS ``name`` (``gnss_pos_sigma_m``, ``gnss_vel_sigma_mps``) the engine uses.
+
+    ``reported``: east/north variances (2,) the messages reported (empty if none). Their
+    median when the engine takes R from the messages (:func:`uses_reported_covariance`),
+    else the parameter. The coarse stage and the motion judgement weigh GNSS velocity
+    with it, and the self-check compares the data with it.
+    """
+    if uses_reported_covariance(cfg) and len(reported):
+        return math.sqrt(float(np.median([np.mean(v) for v in reported])))
+    return cfg[name]
