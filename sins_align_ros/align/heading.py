@@ -28,7 +28,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..nav.frames import dcm_to_euler, wrap_pi
-from .gnss_gate import FilterDiverged
 
 #: a heading epoch stamped this far ahead of the IMU clock is dropped, s (as GNSS)
 MAX_LEAD_S = 10.0
@@ -96,26 +95,6 @@ def yaw_update(x, P, i_phi, C_b_n, yaw, var, max_nis=None):
     A = np.eye(n) - np.outer(K, H)
     P = A @ P @ A.T + var * np.outer(K, K)
     return x + K * y, 0.5 * (P + P.T), y, S, True
-
-
-def gated_yaw_update(gate, owner, x, P, i_phi, C_b_n, fix, yaw):
-    """:func:`yaw_update` of ``fix`` (yaw carried to ``yaw``) through ``gate``; (x, P) or None.
-
-    ``gate``: the engine's heading :class:`~.gnss_gate.GnssGate` (its forced acceptance
-    widens ``owner.P``, the object holding the filter's covariance); a rejected epoch is
-    counted there and returns None. A non-finite result raises
-    :class:`~.gnss_gate.FilterDiverged`.
-    """
-    max_nis = gate.threshold(1, owner)
-    x, P, y, S, ok = yaw_update(x, P, i_phi, C_b_n, yaw, fix.var, max_nis)
-    if not ok:
-        k_up = np.arange(len(x))[i_phi][2]
-        gate.rejected(fix.t, y * y / S, max_nis, np.array([k_up]), np.array([y]))
-        return None
-    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
-        raise FilterDiverged(f'filter diverged at t={fix.t:.3f} s (heading update)')
-    gate.accepted()
-    return x, P
 
 
 def take_heading(C_b_n, P, k_up, yaw, var):

@@ -3,14 +3,35 @@
 A mixin of :class:`~.aided.GnssAidedEngine`: a GNSS compass's or gyrocompass's yaw
 (``heading/in``) updates the engine's misalignment between GNSS epochs, or, while the
 heading is still beyond the small-angle model, is taken directly
-(:mod:`.heading` has the measurement itself).
+(:mod:`.heading` has the measurement itself; :func:`gated_yaw_update` takes it through
+the innovation gate).
 """
 import math
 
 import numpy as np
 
-from .gnss_gate import GnssGate
-from .heading import LINEAR_MAX, gated_yaw_update, take_heading
+from .gnss_gate import FilterDiverged, GnssGate
+from .heading import LINEAR_MAX, take_heading, yaw_update
+
+
+def gated_yaw_update(gate, owner, x, P, i_phi, C_b_n, fix, yaw):
+    """Update ``x``, ``P`` with ``fix`` (yaw carried to ``yaw``) through ``gate``; (x, P) or None.
+
+    The update is :func:`~.heading.yaw_update`; ``gate`` the engine's heading
+    :class:`~.gnss_gate.GnssGate` (its forced acceptance widens ``owner.P``, the object
+    holding the filter's covariance); a rejected epoch is counted there and returns None.
+    A non-finite result raises :class:`~.gnss_gate.FilterDiverged`.
+    """
+    max_nis = gate.threshold(1, owner)
+    x, P, y, S, ok = yaw_update(x, P, i_phi, C_b_n, yaw, fix.var, max_nis)
+    if not ok:
+        k_up = np.arange(len(x))[i_phi][2]
+        gate.rejected(fix.t, y * y / S, max_nis, np.array([k_up]), np.array([y]))
+        return None
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
+        raise FilterDiverged(f'filter diverged at t={fix.t:.3f} s (heading update)')
+    gate.accepted()
+    return x, P
 
 
 class ExternalHeading:

@@ -31,7 +31,8 @@ import numpy as np
 from ..filters import kf
 from ..filters.chi2 import chi2_quantile
 from .gnss_gate import GnssGate
-from .heading import LINEAR_MAX, gated_yaw_update, take_heading
+from .heading import LINEAR_MAX, take_heading
+from .heading_update import gated_yaw_update
 from .still_watch import P_FALSE, ROLLBACK_S, Coast, cruise_floor
 from ..models.stationary import unobservable_variance
 from ..nav import earth
