@@ -13,7 +13,7 @@ import pytest
 
 from sins_align_ros.align.angle_walk import (BOUNDED_RATIO, DEGREE, walk_density,
                                              walk_factor, walk_or_noise)
-from sins_align_ros.align.self_check import difference_density
+from sins_align_ros.align.noise_estimates import difference_density
 from sins_align_ros.sim.imu import ImuErrors, ImuSpec
 from sins_align_ros.units import DPSH
 

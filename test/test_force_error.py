@@ -5,7 +5,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from sins_align_ros.align import rotation_error, self_check
+from sins_align_ros.align import grade_check, rotation_error
 from sins_align_ros.align.force_error import FORCE_MEMORY_S, ForceError
 from sins_align_ros.align.rotation_error import COHERENCE_FACTOR, coherent_variance
 from sins_align_ros.eval.integrity import run_integrity
@@ -99,12 +99,12 @@ def test_force_variance_closed_form():
 def _before(monkeypatch):
     """The self-check and the rotation model as they were before the accelerometer model
     (and before the gyro misalignment's tilt floor)."""
-    monkeypatch.setattr(self_check, 'ACCEL_BIAS_BY_GYRO_NOISE',
+    monkeypatch.setattr(grade_check, 'ACCEL_BIAS_BY_GYRO_NOISE',
                         ((0.003, 100.0), (0.15, 500.0), (0.6, 2000.0), (math.inf, 5000.0)))
-    monkeypatch.setattr(self_check, 'GYRO_BIAS_BY_GYRO_NOISE_MOVING',
-                        tuple((e, 0.0) for e, _ in self_check.GYRO_BIAS_BY_GYRO_NOISE_MOVING))
-    monkeypatch.setattr(self_check, 'ACCEL_SCALE_BY_GYRO_NOISE',
-                        tuple((e, (0.0, 0.0)) for e, _ in self_check.ACCEL_SCALE_BY_GYRO_NOISE))
+    monkeypatch.setattr(grade_check, 'GYRO_BIAS_BY_GYRO_NOISE_MOVING',
+                        tuple((e, 0.0) for e, _ in grade_check.GYRO_BIAS_BY_GYRO_NOISE_MOVING))
+    monkeypatch.setattr(grade_check, 'ACCEL_SCALE_BY_GYRO_NOISE',
+                        tuple((e, (0.0, 0.0)) for e, _ in grade_check.ACCEL_SCALE_BY_GYRO_NOISE))
     monkeypatch.setattr(rotation_error, 'COHERENCE_FACTOR', 1.0)
     # nor was there the gyro misalignment's tilt floor (rotation_error.unseparable_tilt_var)
     monkeypatch.setattr(rotation_error, 'unseparable_tilt_var', lambda m: 0.0)

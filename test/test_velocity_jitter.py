@@ -3,7 +3,7 @@
 Vibration is bounded in velocity: the mechanized velocity carries it at every GNSS epoch as
 an error that does not accumulate (the simulator's ``ROBOT_VIBRATION``: 0.05 m/s per axis,
 correlated over 0.05 s). The self-check measures it from the specific-force integral
-(``self_check.velocity_jitter``) and, where it is at least the GNSS velocity sigma, widens
+(``gnss_noise_check.velocity_jitter``) and, where it is at least the GNSS velocity sigma, widens
 ``imu_velocity_jitter_mps``; the engines add its variance to the velocity rows' noise (the
 ASCKF has it lent beside its Sage-Husa R, ``epoch_noise.py``).
 """
@@ -13,9 +13,10 @@ import numpy as np
 
 from sins_align_ros.align import params as prm
 from sins_align_ros.align.gnss_fix import GnssFix
+from sins_align_ros.align.gnss_noise_check import (JITTER_CHUNK_S, JITTER_COUNTED,
+                                                   _velocity_jitter, velocity_jitter)
 from sins_align_ros.align.moving import MovingBaseAlignment
-from sins_align_ros.align.self_check import (JITTER_CHUNK_S, JITTER_COUNTED, SelfCheck,
-                                             _velocity_jitter, velocity_jitter)
+from sins_align_ros.align.self_check import SelfCheck
 from sins_align_ros.sim.imu import ImuErrors, ImuSpec
 from sins_align_ros.units import DEG, UG
 

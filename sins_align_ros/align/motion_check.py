@@ -10,29 +10,29 @@ stage runs, its IMU samples are taken in windows of :data:`WINDOW_S` seconds and
 checked as the coarse self-check checks a moving base, with its estimators:
 
 * **White noise**: the third differences of the rates and of the specific force
-  (:func:`~.self_check.difference_density`: motion is smooth at the sample level, so what
+  (:func:`~.noise_estimates.difference_density`: motion is smooth at the sample level, so what
   is left is the sensor's noise plus vibration and quantization, an upper bound). The
   gyro's random walk is the smaller of that and the window's bound over seconds
   (:func:`~.angle_walk.walk_density`: a mount's vibration is bounded in angle). Where
-  it is more than :data:`~.self_check.NOISE_RATIO` times the model's (as the
+  it is more than :data:`~.noise_estimates.NOISE_RATIO` times the model's (as the
   coarse self-check and earlier windows left it), the engine's misalignment process noise
   is raised by the square of the ratio; the accelerometer's, counted at most to the white
-  noise of the class the gyro noise shows (:data:`~.self_check.ACCEL_VRW_BY_GYRO_NOISE`,
+  noise of the class the gyro noise shows (:data:`~.grade_check.ACCEL_VRW_BY_GYRO_NOISE`,
   as the coarse check does: vibration above it averages out over a GNSS interval), raises
   the velocity process noise the same way.
 * **Velocity jitter** (a vibrating chassis's bounded velocity error,
-  :func:`~.self_check.velocity_jitter`): where a window's is at least
-  :data:`~.self_check.JITTER_COUNTED` times the GNSS velocity sigma the filter takes
-  (``engine.receiver_velocity_var``) and more than :data:`~.self_check.NOISE_RATIO` times
+  :func:`~.gnss_noise_check.velocity_jitter`): where a window's is at least
+  :data:`~.gnss_noise_check.JITTER_COUNTED` times the GNSS velocity sigma the filter takes
+  (``engine.receiver_velocity_var``) and more than :data:`~.noise_estimates.NOISE_RATIO` times
   the jitter the engine has, the engine's ``velocity_jitter_var`` is raised to it (added to
   the GNSS velocity noise, :mod:`.epoch_noise`): a robot that waited still through the
   coarse window vibrates only once it drives.
 * **Turns and the grade**: a window whose rate reaches :data:`TURN_RATE` shows turns;
   the scale factors and axis misalignment of the class the gyro noise shows
-  (:data:`~.self_check.SCALE_BY_GYRO_NOISE`: 2 % and 0.5 % for MEMS triads, none for the
+  (:data:`~.grade_check.SCALE_BY_GYRO_NOISE`: 2 % and 0.5 % for MEMS triads, none for the
   tactical and navigation classes) then replace the model's where larger
   (``engine.set_rotation_error``, :mod:`.rotation_error`), and so do the accelerometer
-  triad's of the same class (:data:`~.self_check.ACCEL_SCALE_BY_GYRO_NOISE`,
+  triad's of the same class (:data:`~.grade_check.ACCEL_SCALE_BY_GYRO_NOISE`,
   ``engine.set_force_error``, :mod:`.force_error`: a car that stood still through the
   coarse window brakes and turns with them too). The class is that of the
   smaller of the window's noise and the model's at the start of the stage (as the coarse
@@ -53,9 +53,10 @@ import numpy as np
 
 from ..units import DEG, DPSH, UG
 from .angle_walk import walk_density, walk_or_noise
-from .self_check import (ACCEL_SCALE_BY_GYRO_NOISE, ACCEL_VRW_BY_GYRO_NOISE, JITTER_COUNTED,
-                         NOISE_RATIO, SCALE_BY_GYRO_NOISE, difference_density,
-                         velocity_jitter)
+from .gnss_noise_check import JITTER_COUNTED, velocity_jitter
+from .grade_check import (ACCEL_SCALE_BY_GYRO_NOISE, ACCEL_VRW_BY_GYRO_NOISE,
+                          SCALE_BY_GYRO_NOISE)
+from .noise_estimates import NOISE_RATIO, difference_density
 
 #: per triad: the class table of its scale factor and misalignment (ppm), the engine's
 #: setter, and what a 1 % error does (the finding's example)
