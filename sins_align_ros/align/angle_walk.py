@@ -1,7 +1,7 @@
 """The gyro's angle random walk over seconds, told from a vibrating mount's bounded jitter.
 
 On a moving base the self-check takes the gyro white noise from the third differences
-of the rate samples (:func:`~.self_check.difference_density`): motion is smooth at the
+of the rate samples (:func:`~.noise_estimates.difference_density`): motion is smooth at the
 sample level, so what is left is the sensor's noise, plus vibration and quantization.
 For the grade that is the right figure (a vibrating chassis does carry a cheap IMU), but
 the filters take ``gyro_arw_dpsh`` as a random walk of the attitude, and a mount's
@@ -98,7 +98,7 @@ def walk_or_noise(walk, noise):
     """Return the gyro random walk a filter should take (rad/sqrt(s)).
 
     ``walk`` the bound of :func:`walk_density` (NaN or None: none), ``noise`` the
-    sample-level white noise (:func:`~.self_check.difference_density`): the walk where it
+    sample-level white noise (:func:`~.noise_estimates.difference_density`): the walk where it
     is below the noise by :data:`BOUNDED_RATIO` (the rest is bounded: vibration), else the
     noise.
     """

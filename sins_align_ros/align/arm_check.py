@@ -14,7 +14,7 @@ integral ``u(t)`` (:func:`~sins_align_ros.nav.coarse.velocity_integral_b0`) up t
 rotation, gravity's integral and slow bias terms; the antenna adds
 ``C_b^b0 (w x l) = sum_k l_k C_b^b0 (w x e_k)``, linear in ``l``. Levelled by gravity's
 integral, the ENU velocity is ``V = R(psi) u + R(psi) B l + smooth``. The second
-differences remove the smooth part (as in :func:`~.self_check.motion_free_velocity_sigma`);
+differences remove the smooth part (as in :func:`~.gnss_noise_check.motion_free_velocity_sigma`);
 for each heading ``psi`` on a 1-deg grid ``l`` is the least-squares solution, and the
 heading with the smallest clipped sum of squares wins (clipped, so a GNSS outlier does not
 choose it). The rows beyond 4 sigma and their neighbours are then dropped and ``l``

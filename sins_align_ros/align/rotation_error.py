@@ -95,7 +95,7 @@ COHERENCE_FACTOR = 2.0
 #: (robot_skid, positions only, raw AHRS triads, kf/ukf, 10 seeds: the heading declared
 #: unknown at the end in 10 of 10 runs of every cell, 3-6 deg RMS); at 1x, with the moving
 #: base's bias instability counted from the sensor and not the chassis's vibration
-#: (:data:`~.self_check.GYRO_NOISE_FOR_INSTABILITY_MOVING`), it is published at the end
+#: (:data:`~.grade_check.GYRO_NOISE_FOR_INSTABILITY_MOVING`), it is published at the end
 #: (10 seeds per cell: mean heading sigma 8.3-9.1 deg, none silent). With Doppler velocity
 #: (robot:consumer) the heading
 #: sigma at the end went from 6.5 / 9.0 deg (kf / ukf) to 5.3 / 6.3, no run silent-wrong;
