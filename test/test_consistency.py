@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from sins_align_ros.align.aided import INFLATION_SPAN, MAX_NOISE_SCALE
+from sins_align_ros.align.consistency_remedies import INFLATION_SPAN, MAX_NOISE_SCALE
 from sins_align_ros.align.consistency import (HISTORY, MAX_INFLATION, WINDOW,
                                               ConsistencyMonitor)
 from sins_align_ros.align.moving import MovingBaseAlignment

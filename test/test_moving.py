@@ -183,7 +183,7 @@ def test_seed000_engine_caps_a_wide_heading_prior_and_publishes_the_coarse_one()
     """A 60 deg coarse heading sigma: the cubature filter gets 45 deg (13 states: points
     within +-162 deg, inside the circle), the published heading variance is the coarse
     one until GNSS has told the filter something."""
-    from sins_align_ros.align.aided import HEADING_PRIOR_MAX
+    from sins_align_ros.align.prior_shaping import HEADING_PRIOR_MAX
     P0 = np.diag(np.r_[[0.1 ** 2] * 2, [2.0 ** 2] * 2, [(0.5 * DEG) ** 2] * 2,
                        (60.0 * DEG) ** 2, [(1.0 * DPH) ** 2] * 3])
     eng = MovingBaseAlignment(np.eye(3), np.zeros(3), 0.5, 2.0, 0.0, P0, np.zeros(10),
@@ -200,7 +200,7 @@ def test_fine_filter_recovers_a_large_heading_error(heading_err_deg, tol_arcmin)
 
     (From 90 deg with a 90 deg sigma it fails in some seeds, bench/moving_base.py
     section 3a: the cubature points spread over +-5 rad of heading.) The filter is given
-    at most a 45 deg heading sigma (``aided.capped_heading_prior``), which slows the
+    at most a 45 deg heading sigma (``prior_shaping.capped_heading_prior``), which slows the
     recovery from 180 deg (2.4' -> 10.2' at 600 s) but keeps the points inside the circle.
     """
     b = _ship(600.0, seed=2)

@@ -10,7 +10,9 @@ import math
 import numpy as np
 import pytest
 
-from sins_align_ros.align.aided import ANGLE_UNKNOWN_VAR, MAX_PREDICT, cap_angles
+from sins_align_ros.align.aided import MAX_PREDICT
+from sins_align_ros.align.force import ANGLE_UNKNOWN_VAR
+from sins_align_ros.align.prior_shaping import cap_angles
 from sins_align_ros.align.moving import I_EPS, I_PHI, MovingBaseAlignment
 from sins_align_ros.filters.cubature import chol_lower
 from sins_align_ros.models import large_azimuth as la

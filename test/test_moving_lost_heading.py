@@ -1,7 +1,7 @@
 """Seed 000's engine with a heading handed over as an unknown angle: lost until acquired.
 
 The coarse stage of a slow robot (no track, a gyro that cannot gyrocompass) hands over a
-heading sigma beyond the cubature cap (``aided.HEADING_PRIOR_MAX``). The engine then keeps
+heading sigma beyond the cubature cap (``prior_shaping.HEADING_PRIOR_MAX``). The engine then keeps
 (``hold_lost_heading``: the pipeline's while the course aid runs) the horizontal force out
 of its model (its velocity error is process noise of an unknown
 angle) until a straight leg's course or an external heading is taken
@@ -15,7 +15,8 @@ import math
 import numpy as np
 import pytest
 
-from sins_align_ros.align.aided import ANGLE_UNKNOWN_VAR, HEADING_PRIOR_MAX
+from sins_align_ros.align.force import ANGLE_UNKNOWN_VAR
+from sins_align_ros.align.prior_shaping import HEADING_PRIOR_MAX
 from sins_align_ros.align.gnss_fix import GnssFix
 from sins_align_ros.align.force import LOST_WAIT_S
 from sins_align_ros.align.heading import HeadingFix

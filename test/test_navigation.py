@@ -265,7 +265,7 @@ def test_a_lost_heading_takes_no_information_from_the_horizontal_force(method):
     and the update shrinks the heading variance; so does a heading lost for longer than
     ``LOST_WAIT_S`` with no acquisition (the linear model's own convergence is let try).
     """
-    from sins_align_ros.align.aided import ANGLE_UNKNOWN_VAR
+    from sins_align_ros.align.force import ANGLE_UNKNOWN_VAR
     from sins_align_ros.align.gnss_fix import GnssFix
     n = 18 if method == 'ukf' else 15
     P0, Qc = model_noise(n, [0.002, 0.002, 0.5], 0.1, 1.0, (200 * DPH, 0.0), (500 * UG, 0.0),

@@ -239,7 +239,7 @@ def test_capped_heading_prior_publishes_the_coarse_prior_until_the_filter_learns
     """A 90 deg coarse heading sigma: the filter gets 45 deg (cubature points inside the
     circle), the published heading variance is the coarse one before any epoch and the
     information-form combination 1 / (1/P - 1/cap^2 + 1/sigma0^2) after learning."""
-    from sins_align_ros.align.aided import HEADING_PRIOR_MAX, capped_heading_prior
+    from sins_align_ros.align.prior_shaping import HEADING_PRIOR_MAX, capped_heading_prior
     from sins_align_ros.align.robust import RobustAlignment
     sig = np.array([0.5, 0.5, 90.0]) * DEG
     P0 = np.diag(np.r_[sig ** 2, [0.01] * 3, [(5 * DPH) ** 2] * 3, [(500 * UG) ** 2] * 3])

@@ -15,11 +15,11 @@ predicts without an update, so an outage only widens the covariance.
 :mod:`.navigation`) builds its filter and supplies the hooks ``_transition``,
 ``measurement`` and ``_feedback`` (and optionally ``_correct_imu``,
 ``_set_process_noise``, ``_interval_ended``). Its mixins hold the other jobs: what is
-done to the prior before the first epoch (:class:`PriorShaping`), the consistency
-monitor's remedies (:class:`ConsistencyRemedies`), which horizontal force the model
-may use (:class:`~.force.ForceModel`), the external heading's epochs
-(:class:`~.heading_update.ExternalHeading`) and each GNSS epoch's measurement noise
-(:class:`~.epoch_noise.EpochNoise`).
+done to the prior before the first epoch (:class:`~.prior_shaping.PriorShaping`), the
+consistency monitor's remedies (:class:`~.consistency_remedies.ConsistencyRemedies`),
+which horizontal force the model may use (:class:`~.force.ForceModel`), the external
+heading's epochs (:class:`~.heading_update.ExternalHeading`) and each GNSS epoch's
+measurement noise (:class:`~.epoch_noise.EpochNoise`).
 """
 import math
 from dataclasses import dataclass
@@ -29,13 +29,15 @@ import numpy as np
 from ..filters.cubature import batched
 from ..nav import kernels
 from ..nav.mechanization import MechanizationOptions, Strapdown
-from ..units import DPH, UG
+from ..units import DPH
 from .epoch_noise import EpochNoise
-from .force import ANGLE_UNKNOWN_VAR, ForceModel  # noqa: F401  (re-exported)
+from .consistency_remedies import ConsistencyRemedies
+from .force import ForceModel
 from .force_error import ForceError
 from .gnss_fix import GnssFix
 from .gnss_gate import FilterDiverged
 from .heading_update import ExternalHeading
+from .prior_shaping import HEADING_PRIOR_MAX, PriorShaping
 from .rotation_error import RotationError
 
 #: the longest interval the error model is propagated without a measurement, s
@@ -45,51 +47,6 @@ MAX_PREDICT = 2.0
 STRETCH = 4096
 #: what the interval-sum kernel is given for ``C_sum`` when it keeps none (not written)
 _NO_C_SUM = np.zeros((3, 3))
-#: seconds over which an inflation's process-noise floor would add the state's variance
-INFLATION_SPAN = 100.0
-#: largest inflation of a measurement noise variance by the consistency monitor
-MAX_NOISE_SCALE = 100.0
-#: prior sigma of a held accelerometer bias state, m/s^2
-#: (:meth:`GnssAidedEngine.hold_level_accel_bias`)
-ACCEL_BIAS_HOLD = UG
-#: largest initial heading sigma a cubature filter is given, rad (:func:`capped_heading_prior`)
-HEADING_PRIOR_MAX = math.radians(45.0)
-
-
-def cap_angles(P, rows):
-    """Return covariance ``P`` with no variance of angle ``rows`` above :data:`ANGLE_UNKNOWN_VAR`.
-
-    A misalignment is never more uncertain than an angle anywhere in a circle: those
-    rows and columns are scaled down to it, which keeps ``P`` positive semi-definite.
-    """
-    s = np.ones(len(P))
-    s[rows] = np.sqrt(np.minimum(1.0, ANGLE_UNKNOWN_VAR / np.diag(P)[rows]))
-    return P * np.outer(s, s)
-
-
-def capped_heading_prior(P0, k):
-    """Return ``(P0', var0)``: P0 (n, n) with the heading variance (row ``k``) at most the cap's.
-
-    The coarse stage hands over a conservative heading bound, up to 90 deg for a gyro
-    that cannot gyrocompass (``coarse_stage.coarse_sigma``). A cubature filter puts its
-    points at +-sqrt(n) sigma: 90 deg with 12-13 states puts them past +-310 deg, beyond
-    the circle's wrap, where the cubature means and cross-covariances lose their meaning
-    (seed 004's USV, low grade told its sensors: 10 of 10 runs silent-wrong, one 175
-    deg off; seed 000's CKF on a moored ship with a tactical gyro told 10x too good:
-    heading pulled from 0.7 deg to 50 deg off, ending 24 deg off under a 6.4 deg
-    sigma). So the filter is given at most :data:`HEADING_PRIOR_MAX` (45 deg: points
-    within +-162 deg with 13 states) and :meth:`GnssAidedEngine.attitude_cov` puts the
-    coarse prior back in information form. ``var0`` is the heading variance P0 had
-    (rad^2) when it was above the cap, else None (P0 unchanged); the heading row and
-    column are scaled together (correlations kept).
-    """
-    P0 = np.array(P0, dtype=float)
-    var0 = float(P0[k, k])
-    if var0 <= HEADING_PRIOR_MAX ** 2:
-        return P0, None
-    s = np.ones(len(P0))
-    s[k] = HEADING_PRIOR_MAX / math.sqrt(var0)
-    return P0 * np.outer(s, s), var0
 
 
 class IntervalSums:
@@ -150,133 +107,6 @@ class Block:
     predicted: list
     end: int
     reason: str = None
-
-
-class PriorShaping:
-    """What an engine does to its filter's prior before the first epoch.
-
-    A mixin of :class:`GnssAidedEngine`, whose ``kf``, ``i_phi``, ``Qc`` and process-noise
-    bookkeeping (``_Qc0``, ``_held``) it uses.
-    """
-
-    #: accelerometer-bias slice (body x, y, z) of the state, None without one
-    i_nab = None
-    #: the coarse heading variance (rad^2) when the filter was given a capped one
-    #: (:meth:`cap_heading_prior`), else None
-    heading_prior_var = None
-
-    def hold_level_accel_bias(self):
-        """Stop estimating the body x/y accelerometer bias: at rest with the heading unknown.
-
-        At rest a level accelerometer bias and a tilt are one (seed 002 eq. 15); a filter
-        that estimates the bias takes its wandering unknown heading for a rotation of the
-        base and "separates" them wrongly (still MEMS IMU: north tilt 24-32' RMS against
-        the bias's 6'; docs/filters.md). The two states' prior is scaled to
-        :data:`ACCEL_BIAS_HOLD` and their process noise zeroed, which leaves the bias in
-        the tilt, published at no less than ``(a / g)^2`` (``FineStage.tilt_bound``).
-        Call before the first epoch.
-        """
-        if self.i_nab is None:
-            return
-        k = np.arange(len(self.kf.x))[self.i_nab][:2]
-        s = np.ones(len(self.kf.x))
-        s[k] = ACCEL_BIAS_HOLD / np.sqrt(np.maximum(np.diag(self.kf.P)[k], ACCEL_BIAS_HOLD ** 2))
-        self.kf.transform(np.diag(s))
-        self.Qc = self.Qc.copy()
-        self.Qc[k] = self._Qc0[k] = 0.0
-        self._held[k] = True
-
-    def cap_heading_prior(self, P0):
-        """Return P0 with its heading variance capped (:func:`capped_heading_prior`).
-
-        Families with cubature filters call this on their P0 before building the filter
-        (``i_phi`` must be set); the coarse variance is kept for :meth:`attitude_cov`.
-        """
-        k = np.arange(len(P0))[self.i_phi][2]
-        P0, self.heading_prior_var = capped_heading_prior(P0, k)
-        return P0
-
-
-class ConsistencyRemedies:
-    """What the consistency monitor (:mod:`.consistency`) and the pipeline ask of an engine.
-
-    A mixin of :class:`GnssAidedEngine`, whose ``kf``, ``Qc``, ``R_scale``, ``adaptive``,
-    ``i_phi``, ``i_v`` and process-noise bookkeeping (``_Qc0``, ``_held``) it uses.
-    """
-
-    def inflate(self, factor):
-        """Inflate the process noise by ``factor`` (up to 1e4x) and the covariance by its root.
-
-        The consistency monitor's remedy for innovations larger than the filter predicts
-        (:mod:`.consistency`): the state is less certain than the filter thought, and its
-        model drives it too little. The covariance takes only the square root of the
-        factor: the NIS ratio measures the innovation covariance, which a too-small Q
-        keeps too small at every epoch, so most of the remedy belongs in Q; a full jump
-        of P by up to 10x at each failed window threw the attitude of a GNSS-aided
-        filter out of its small-angle model (seed 003's car with default parameters).
-        States the model holds constant (zero Qc) get the process noise that would add
-        ``factor - 1`` times their variance over :data:`INFLATION_SPAN` seconds, since
-        a zero cannot be scaled.
-
-        A square-root filter (``kf.S``, ``P = S S^T``: the ASCKF) has its factor scaled,
-        by ``factor^(1/4)`` and the angle rows by :func:`cap_angles`'s factors, which is
-        the same ``P`` without factorising it again: a near-singular ``P`` (rounded
-        indefinite) made the Cholesky of setting ``kf.P`` raise (a robot with RTK in the
-        integrity matrix), where scaling ``S`` keeps it a factor of a semi-definite ``P``.
-        """
-        if getattr(self.kf, 'S', None) is not None:      # square root: no Cholesky of P
-            S = self.kf.S * factor ** 0.25
-            d = np.einsum('ij,ij->i', S, S)              # diag(S S^T)
-            c = np.ones(len(d))
-            rows = np.arange(len(d))[self.i_phi]
-            c[rows] = np.sqrt(np.minimum(1.0, ANGLE_UNKNOWN_VAR / d[rows]))
-            self.kf.S = c[:, None] * S
-        else:
-            P = self.kf.P * math.sqrt(factor)
-            self.kf.P = cap_angles(P, np.arange(len(P))[self.i_phi])
-        # states the model holds constant (zero process noise) get some: the model
-        # error may be theirs (a bias that varies, a constant one larger than its prior)
-        floor = (factor - 1.0) * np.diag(self.kf.P) / INFLATION_SPAN
-        self._set_Qc(np.where(self._held, np.maximum(self.Qc, floor),
-                              np.minimum(self.Qc * factor, self._Qc0 * 1e4)))
-
-    def relax(self):
-        """Halve the process noise raised by :meth:`inflate` back towards the model's."""
-        self._set_Qc(np.where(self._held, 0.5 * self.Qc, np.maximum(0.5 * self.Qc, self._Qc0)))
-
-    def _set_Qc(self, Qc):
-        """Set the process noise densities ``Qc`` (n,); an adaptive filter's Q follows them.
-
-        A filter that estimates Q (``own_Q``) keeps its own (it starts from ``diag(Qc) *
-        1 s``): it gets the change ``diag(Qc_new - Qc_old) * 1 s`` on top of its estimate,
-        so an inflation is taken back by :meth:`relax` as with the other filters. (Before,
-        an ASCKF's Q was multiplied by the factor and the estimator's copy overwrote it at
-        the next epoch: the inflation never reached it, ``filters/asckf.py``.)
-        """
-        Qc = np.asarray(Qc, dtype=float)
-        if self.own_Q:
-            Q = self.kf.Q.copy()
-            Q[np.diag_indices(len(Q))] += Qc - self.Qc
-            self.kf.Q = Q
-        self.Qc = Qc
-
-    def inflate_noise(self, factors):
-        """Inflate measurement rows' noise variances: ``factors`` row -> factor.
-
-        The consistency monitor's remedy when the innovations are larger than predicted
-        but white (the receiver is noisier than configured). Capped at
-        :data:`MAX_NOISE_SCALE`; no effect on filters that estimate R themselves.
-        """
-        for r, f in factors.items():
-            self.R_scale[r] = min(self.R_scale[r] * f, MAX_NOISE_SCALE)
-
-    def widen(self, var_phi, var_v):
-        """Add ``var_phi`` (rad^2) to each misalignment and ``var_v`` to each velocity variance."""
-        P = self.kf.P
-        k = np.arange(len(P))
-        P[k[self.i_phi], k[self.i_phi]] += var_phi
-        P[k[self.i_v], k[self.i_v]] += var_v
-        self.kf.P = P
 
 
 class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHeading,

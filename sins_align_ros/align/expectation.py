@@ -56,10 +56,10 @@ from ..nav import earth
 from ..nav.frames import dcm_to_euler, euler_cov_from_phi_cov
 from ..units import DPH
 from . import coarse_stage
-from .aided import ANGLE_UNKNOWN_VAR
 from .convergence import MIN_SPAN_S, SHRINK, WINDOW_S
 from .factory import is_aided
 from .fine_stage import Clock
+from .force import ANGLE_UNKNOWN_VAR
 from .handover import fine_stage_for
 from .motion import choose_filter, gnss_motion
 

@@ -53,7 +53,7 @@ def make_engine(cfg, noise, start, has_velocity, heading_known=True):
     ``start`` is a :class:`~.coarse_stage.CoarseResult`; ``has_velocity``: GNSS velocity
     messages have arrived; ``heading_known`` False (an aided filter at rest with a gyro
     that cannot find north): the level accelerometer bias is not estimated
-    (:meth:`~.aided.PriorShaping.hold_level_accel_bias`). Returns ``(engine, floor (3,),
+    (:meth:`~.prior_shaping.PriorShaping.hold_level_accel_bias`). Returns ``(engine, floor (3,),
     warnings)``: ``floor`` the variances (rad^2) the model cannot see, added to its
     attitude covariance at output.
     """

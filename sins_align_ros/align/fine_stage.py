@@ -55,7 +55,8 @@ import math
 
 import numpy as np
 
-from .aided import ANGLE_UNKNOWN_VAR, cap_angles
+from .force import ANGLE_UNKNOWN_VAR
+from .prior_shaping import cap_angles
 from .consistency import ConsistencyMonitor
 from .convergence import ConvergenceMonitor
 from .fine_epochs import EpochUpdates

@@ -82,7 +82,7 @@ def widen_process_noise(engine, rows, factor, floor):
     The continuous densities ``Qc`` and the model's own ``_Qc0`` (so that relaxing an
     inflation returns to the widened model, not below it), at least ``floor`` each; an
     adaptive filter's own Q estimate (ASCKF's Sage-Husa) has those rows and columns scaled
-    as :meth:`~.aided.ConsistencyRemedies.inflate` scales all of it.
+    as :meth:`~.consistency_remedies.ConsistencyRemedies.inflate` scales all of it.
     """
     k = np.arange(len(engine.Qc))[rows]
     for name in ('Qc', '_Qc0'):

@@ -35,7 +35,7 @@ to its tilt variance instead (``has_accel_bias`` False).
 
 Lost heading (where we differ from seed 000, as the navigation filters do,
 :mod:`.navigation`): a heading handed over as an unknown angle (the coarse sigma beyond the
-cubature cap :data:`~.aided.HEADING_PRIOR_MAX`: no track, a gyro that cannot gyrocompass)
+cubature cap :data:`~.prior_shaping.HEADING_PRIOR_MAX`: no track, a gyro that cannot gyrocompass)
 is lost, and while it is the model is given the vertical specific force alone
 (:meth:`~.force.ForceModel._drop_horizontal_force`): the turns' velocity error of a
 heading anywhere in the circle is process noise, not heading information, until a
@@ -79,7 +79,8 @@ from ..models import large_azimuth as la
 from ..nav import earth
 from ..nav.frames import orthonormalize, reorthonormalize
 from ..units import DPH, UG
-from .aided import HEADING_PRIOR_MAX, GnssAidedEngine
+from .aided import GnssAidedEngine
+from .prior_shaping import HEADING_PRIOR_MAX
 from .gnss_fix import GnssFix
 from .gnss_gate import FilterDiverged, GnssGate  # noqa: F401  (FilterDiverged re-exported)
 from .gyro_scale import GyroScaleStates

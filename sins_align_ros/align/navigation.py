@@ -86,7 +86,8 @@ from ..nav import earth
 from ..nav.frames import (dcm_to_euler, euler_to_dcm, orthonormalize, reorthonormalize,
                           rotvec_to_dcm, wrap_pi)
 from ..units import DPH, UG
-from .aided import ANGLE_UNKNOWN_VAR, GnssAidedEngine
+from .aided import GnssAidedEngine
+from .force import ANGLE_UNKNOWN_VAR
 from .gnss_gate import GnssGate
 from .gyro_scale import GyroScaleStates
 from .params import NAV_FILTERS

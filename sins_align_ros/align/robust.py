@@ -20,7 +20,7 @@ up to 90 deg for a gyro that cannot gyrocompass, while on seed 004's severe sea 
 inertial-frame heading with GNSS velocity was off by 8.8 / 15.7 deg RMS (medium / low
 grade, 20 seeds; at most 26 / 48 deg). The filter is given at most 45 deg and the
 published heading variance puts the coarse prior back in information form
-(:func:`~.aided.capped_heading_prior`, shared with seed 000's family;
+(:func:`~.prior_shaping.capped_heading_prior`, shared with seed 000's family;
 ``bench/results/severe_sea_presets.md``).
 
 Also not in the seed: the model takes the horizontal specific force only where it is
