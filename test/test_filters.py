@@ -375,7 +375,7 @@ def _filters(n=4, M=2):
 @pytest.mark.parametrize('name', ['CKF', 'ASCKF', 'KF', 'VBAKF', 'MVBAKF', 'UKF', 'VBCKF',
                                   'VBCH'])
 def test_every_filter_has_the_declared_interface(name):
-    """Each filter is a GaussianFilter: predict, step (with a subset and the gate), transform."""
+    """Each filter is a GaussianFilter: predict, step (a subset, the gate), transform, append."""
     from sins_align_ros.filters.base import GaussianFilter, Innovation
     from sins_align_ros.filters.cubature import batched
     from sins_align_ros.filters.linear_kf import linear
@@ -399,6 +399,18 @@ def test_every_filter_has_the_declared_interface(name):
     # T P T^T, two n = 4 dot products deep (T diagonal here: fewer), in two orders
     np.testing.assert_allclose(f.P, T @ P @ T.T, rtol=0,
                                atol=roundoff(16, np.abs(T).max() ** 2 * np.abs(P).max()))
+    # two random constants appended (the gyro scale-factor states): x by zeros, P by their
+    # diagonal block, no cross terms, no process noise; the filter then runs on 6 states
+    x, P, var = f.x.copy(), f.P.copy(), np.array([0.5, 2.0])
+    f.append_states(var)
+    assert f.x.shape == (6,) and f.P.shape == (6, 6) and f.Q.shape == (6, 6)
+    assert np.all(f.x[:4] == x) and np.all(f.x[4:] == 0.0)
+    # a square-root factor's S S^T: n = 4 products per entry
+    np.testing.assert_allclose(f.P[:4, :4], P, rtol=0, atol=roundoff(8, np.abs(P).max()))
+    np.testing.assert_allclose(f.P[4:, 4:], np.diag(var), rtol=0, atol=roundoff(2, var.max()))
+    assert np.all(f.P[:4, 4:] == 0.0) and np.all(f.Q[4:] == 0.0) and np.all(f.Q[:, 4:] == 0.0)
+    f.step(linear(np.eye(6)), np.array([0.3]), batched(lambda X: X[[1]]), np.array([1]))
+    assert f.x.shape == (6,) and np.all(np.isfinite(f.P))
 
 
 def test_chi2_quantile_equals_scipy_and_the_closed_forms():

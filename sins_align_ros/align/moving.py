@@ -80,10 +80,10 @@ from ..nav import earth
 from ..nav.frames import orthonormalize, reorthonormalize
 from ..units import DPH, UG
 from .aided import GnssAidedEngine
-from .prior_shaping import HEADING_PRIOR_MAX
 from .gnss_fix import GnssFix
 from .gnss_gate import FilterDiverged, GnssGate  # noqa: F401  (FilterDiverged re-exported)
 from .gyro_scale import GyroScaleStates
+from .prior_shaping import HEADING_PRIOR_MAX
 
 I_V, I_P, I_PHI, I_EPS = slice(0, 2), slice(2, 4), slice(4, 7), slice(7, 10)
 #: accelerometer bias, body axes (13-state model only)

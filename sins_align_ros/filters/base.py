@@ -85,6 +85,13 @@ class GaussianFilter(Protocol):
     def transform(self, T) -> None:
         """Change state coordinates (T (n, n)): ``x <- T x``, ``P <- T P T^T``."""
 
+    def append_states(self, var) -> None:
+        """Append zero-mean random constants of variances ``var`` (k,), uncorrelated.
+
+        ``x`` grows by zeros, ``P`` by the diagonal block ``diag(var)``, ``Q`` by zeros
+        (no process noise of their own).
+        """
+
 
 class PriorInnovation:
     """Prior innovation ``y`` (m,) and its covariance ``Pzz`` (m, m) of one epoch."""
@@ -136,3 +143,12 @@ class CovarianceFilter:
         """Change state coordinates: ``x <- T x``, ``P <- T P T^T``."""
         self.x = T @ self.x
         self.P = T @ self.P @ T.T
+
+    def append_states(self, var):
+        """Append zero-mean random constants of variances ``var`` (k,): ``GaussianFilter``'s."""
+        var = np.asarray(var, dtype=float)
+        n, k = len(self.x), len(var)
+        P, Q = np.zeros((n + k, n + k)), np.zeros((n + k, n + k))
+        P[:n, :n], Q[:n, :n] = self.P, self.Q
+        P[n:, n:] = np.diag(var)
+        self.x, self.P, self.Q = np.r_[self.x, np.zeros(k)], P, Q

@@ -24,3 +24,15 @@ class VBCH(VBCKF):
         self.L = np.asarray(L, dtype=float)
         self.C = float(C)
         self.var_max = np.diag(self.P).copy() if cap_at_p0 else None
+
+    def append_states(self, var):
+        """Append random constants as every filter does; ``L`` takes none of them.
+
+        ``L`` grows by zero columns (the auxiliary output is the states it named) and the
+        posterior cap by the new states' prior variances ``var`` (k,).
+        """
+        super().append_states(var)
+        var = np.asarray(var, dtype=float)
+        self.L = np.hstack([self.L, np.zeros((len(self.L), len(var)))])
+        if self.var_max is not None:
+            self.var_max = np.r_[self.var_max, var]
