@@ -3,7 +3,7 @@
 
 Each scenario and seed runs the node's default filter (``auto``) told the scenario's sensors
 (``sim.presets.alignment_params``); the pipeline's forecast (``AlignmentPipeline.expectation``,
-``align/expectation.py``, what the node publishes as ``expected_*`` on /diagnostics) is
+``align/forecast/expectation.py``, what the node publishes as ``expected_*`` on /diagnostics) is
 taken every 5 s of data. Compared with what happened: the time from the first sample to the
 first ``aligned`` row and the misalignment 1-sigma published there (tilt: the larger of east
 and north; heading: up), or ``never`` when the run ends without ``aligned``. Forecasts at

@@ -35,7 +35,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))      # this checkout's package, not an installed copy
 
-from sins_align_ros.align.moving import FilterDiverged, MovingBaseAlignment  # noqa: E402
+from sins_align_ros.align.engines.moving import FilterDiverged, MovingBaseAlignment  # noqa: E402
 from sins_align_ros.eval import cache  # noqa: E402
 from sins_align_ros.eval.markdown import machine_summary, write_markdown  # noqa: E402
 from sins_align_ros.eval.pool import monte_carlo  # noqa: E402

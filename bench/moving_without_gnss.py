@@ -28,7 +28,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))      # this checkout's package, not an installed copy
 
-from sins_align_ros.align.still_watch import MOVING_WITHOUT_GNSS  # noqa: E402
+from sins_align_ros.align.engines.still_watch import MOVING_WITHOUT_GNSS  # noqa: E402
 from sins_align_ros.eval.integrity import (published_sigma, run_integrity,  # noqa: E402
                                            sample_rows)
 from sins_align_ros.eval.markdown import page_head, write_markdown  # noqa: E402

@@ -17,7 +17,7 @@ consistent), the mean over the 1-s samples from ``--t-from`` s of each run, then
 the runs (``eval.stats.mean_nees``); the share of runs ending inside 3 sigma on every
 attitude axis and the silent-wrong runs (``eval.integrity.run_integrity``); runs that
 went back to coarse alignment and the consistency monitor's covariance inflations
-(``align.consistency``: it is part of the pipeline and acts on every filter). Then,
+(``align.stages.consistency``: it is part of the pipeline and acts on every filter). Then,
 for each q, MVBAKF minus VBAKF paired by seed (position RMSE, heading RMSE, NEES) with
 the standard error of the mean difference, and a conclusion drawn from those numbers.
 
@@ -50,7 +50,7 @@ sys.path.insert(0, str(ROOT))      # this checkout's package, not an installed c
 sys.path.insert(1, str(ROOT / 'bench'))
 
 from integrity import commit_of  # noqa: E402
-from sins_align_ros.align.consistency import ConsistencyMonitor  # noqa: E402
+from sins_align_ros.align.stages.consistency import ConsistencyMonitor  # noqa: E402
 from sins_align_ros.eval.errors import navigation_rmse, nees  # noqa: E402
 from sins_align_ros.eval.integrity import run_integrity  # noqa: E402
 from sins_align_ros.eval.markdown import machine_summary, write_markdown  # noqa: E402
@@ -287,7 +287,7 @@ def main(argv=None):
         '(`sim.presets.alignment_params`) except its process noise: Q = q x the truth '
         '(`nav_q_scale`; seed 001 sec. 3.2 uses q = 9 only). GNSS innovation gate '
         f'{"on (package default)" if args.gate else "off (as in the paper)"}; the '
-        'consistency monitor (`align.consistency`, NIS over 10 epochs, covariance or R '
+        'consistency monitor (`align.stages.consistency`, NIS over 10 epochs, covariance or R '
         'inflation) is part of the pipeline and '
         + ('**its remedies are off here** (`--monitor-off`, a diagnostic: it tests and '
            'counts, inflates nothing). ' if args.monitor_off else

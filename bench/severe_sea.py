@@ -27,9 +27,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))      # this checkout's package, not an installed copy
 
-from sins_align_ros.align.gnss_fix import GnssFix  # noqa: E402
-from sins_align_ros.align.moving import FilterDiverged  # noqa: E402
-from sins_align_ros.align.robust import RobustAlignment, model_noise  # noqa: E402
+from sins_align_ros.align.inputs.gnss_fix import GnssFix  # noqa: E402
+from sins_align_ros.align.engines.moving import FilterDiverged  # noqa: E402
+from sins_align_ros.align.engines.robust import RobustAlignment, model_noise  # noqa: E402
 from sins_align_ros.eval.markdown import write_markdown  # noqa: E402
 from sins_align_ros.eval.pool import monte_carlo  # noqa: E402
 from sins_align_ros.eval.run import run_scenario  # noqa: E402

@@ -27,7 +27,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))      # this checkout's package, not an installed copy
 
-from sins_align_ros.align.limits import scenario_limits  # noqa: E402
+from sins_align_ros.eval.limits import scenario_limits  # noqa: E402
 from sins_align_ros.align.pipeline import AlignmentPipeline  # noqa: E402
 from sins_align_ros.eval.markdown import machine_summary, write_markdown  # noqa: E402
 from sins_align_ros.eval.pool import monte_carlo as run_seeds  # noqa: E402

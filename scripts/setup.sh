@@ -33,6 +33,9 @@ stamp="$root/install/.build-stamp"
 if [ ! -f "$stamp" ] || [ -n "$(find setup.py setup.cfg package.xml resource sins_align_ros config launch \
       -name __pycache__ -prune -o -newer "$stamp" -print -quit 2>/dev/null)" ]; then
   echo "setup: colcon build"
+  # from scratch: colcon copies files into install/ and never removes one, so a module
+  # moved or deleted in the source would stay importable from an old install
+  rm -rf "$root/build/sins_align_ros" "$root/install/sins_align_ros"
   (
     export PATH="$venv/bin:$PATH"
     colcon build --base-paths "$root" --build-base "$root/build" --install-base "$root/install" \

@@ -11,9 +11,9 @@ import math
 import numpy as np
 import pytest
 
-from sins_align_ros.align.angle_walk import (BOUNDED_RATIO, DEGREE, walk_density,
-                                             walk_factor, walk_or_noise)
-from sins_align_ros.align.noise_estimates import difference_density
+from sins_align_ros.align.stages.angle_walk import (BOUNDED_RATIO, DEGREE, walk_density,
+                                                    walk_factor, walk_or_noise)
+from sins_align_ros.align.stages.noise_estimates import difference_density
 from sins_align_ros.sim.imu import ImuErrors, ImuSpec
 from sins_align_ros.units import DPSH
 
@@ -97,7 +97,7 @@ def test_the_self_check_widens_the_random_walk_only_to_the_walk_on_a_vibrating_b
     sample-level noise (figure ``gyro_noise_dpsh``), ``gyro_arw_dpsh`` widened only to the
     walk (figure ``gyro_walk_dpsh``), and the finding says so."""
     from sins_align_ros.align import params as prm
-    from sins_align_ros.align.self_check import check
+    from sins_align_ros.align.stages.self_check import check
 
     rate = 30.0
     dt = 1.0 / rate

@@ -3,8 +3,8 @@ reaches the prediction and is never estimated, and the engine's ``diag(Qc) T`` p
 (issue 44: an ASCKF on MEMS ground vehicles lost the turn-rate noise the engine lent it)."""
 import numpy as np
 
-from sins_align_ros.align.gnss_fix import GnssFix
-from sins_align_ros.align.moving import MovingBaseAlignment
+from sins_align_ros.align.inputs.gnss_fix import GnssFix
+from sins_align_ros.align.engines.moving import MovingBaseAlignment
 from sins_align_ros.filters.asckf import ASCKF
 from sins_align_ros.filters.cubature import batched
 from sins_align_ros.units import DEG, DPH, UG

@@ -2,10 +2,10 @@
 import numpy as np
 import pytest
 
-from sins_align_ros.align.consistency_remedies import INFLATION_SPAN, MAX_NOISE_SCALE
-from sins_align_ros.align.consistency import (HISTORY, MAX_INFLATION, WINDOW,
-                                              ConsistencyMonitor)
-from sins_align_ros.align.moving import MovingBaseAlignment
+from sins_align_ros.align.engines.consistency_remedies import INFLATION_SPAN, MAX_NOISE_SCALE
+from sins_align_ros.align.stages.consistency import (HISTORY, MAX_INFLATION, WINDOW,
+                                                     ConsistencyMonitor)
+from sins_align_ros.align.engines.moving import MovingBaseAlignment
 from sins_align_ros.eval.run import run_pipeline
 from sins_align_ros.eval.scenarios import named, simulate
 from sins_align_ros.sim.presets import alignment_params

@@ -11,9 +11,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from sins_align_ros.align import course_heading
-from sins_align_ros.align.course_heading import CourseHeading, fitted_course
-from sins_align_ros.align.slow_monitor import Leg
+from sins_align_ros.align.stages import course_heading
+from sins_align_ros.align.stages.course_heading import CourseHeading, fitted_course
+from sins_align_ros.align.stages.slow_monitor import Leg
 from sins_align_ros.eval.integrity import published_sigma, silent_wrong
 from sins_align_ros.eval.run import run_pipeline
 from sins_align_ros.eval.scenarios import simulate

@@ -1,11 +1,12 @@
-"""The time and accuracy to expect (align/expectation.py) against closed forms and outcomes."""
+"""The time and accuracy to expect (align/forecast/expectation.py) against closed forms."""
 import math
 
 import numpy as np
 import pytest
 
-from sins_align_ros.align.convergence import ConvergenceMonitor
-from sins_align_ros.align.expectation import MOTION, covariance_shadow, first_aligned, riccati
+from sins_align_ros.align.stages.convergence import ConvergenceMonitor
+from sins_align_ros.align.forecast.expectation import (MOTION, covariance_shadow, first_aligned,
+                                                       riccati)
 from sins_align_ros.align.pipeline import AlignmentPipeline
 from sins_align_ros.eval.run import run_scenario
 from tolerance import assert_roundoff

@@ -5,9 +5,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from sins_align_ros.align import grade_check, rotation_error
-from sins_align_ros.align.force_error import FORCE_MEMORY_S, ForceError
-from sins_align_ros.align.rotation_error import COHERENCE_FACTOR, coherent_variance
+from sins_align_ros.align.stages import grade_check
+from sins_align_ros.align.engines import rotation_error
+from sins_align_ros.align.engines.force_error import FORCE_MEMORY_S, ForceError
+from sins_align_ros.align.engines.rotation_error import COHERENCE_FACTOR, coherent_variance
 from sins_align_ros.eval.integrity import run_integrity
 from sins_align_ros.eval.run import run_pipeline
 from sins_align_ros.eval.scenarios import simulate

@@ -1,8 +1,8 @@
 """A consumer receiver's time-correlated position error (issue 44 item 2).
 
-The Gauss-Markov model and its decorrelation (:mod:`sins_align_ros.align.gnss_markov`),
+The Gauss-Markov model and its decorrelation (:mod:`sins_align_ros.align.engines.gnss_markov`),
 the long-horizon innovation test that a 10-epoch window cannot replace
-(:class:`~sins_align_ros.align.consistency.LongHorizonTest`), and what the engines do with
+(:class:`~sins_align_ros.align.stages.consistency.LongHorizonTest`), and what the engines do with
 them.
 """
 import math
@@ -10,12 +10,12 @@ import math
 import numpy as np
 import pytest
 
-from sins_align_ros.align.consistency import (LONG_BLOCK_S, LONG_BLOCKS, LONG_PROBABILITY,
-                                              WINDOW, ConsistencyMonitor, LongHorizonTest)
-from sins_align_ros.align.gnss_markov import (GnssMarkov, increment_var, random_walk_var,
-                                              white_equivalent_var)
-from sins_align_ros.align.gnss_fix import GnssFix
-from sins_align_ros.align.moving import MovingBaseAlignment
+from sins_align_ros.align.stages.consistency import (LONG_BLOCK_S, LONG_BLOCKS, LONG_PROBABILITY,
+                                                     WINDOW, ConsistencyMonitor, LongHorizonTest)
+from sins_align_ros.align.engines.gnss_markov import (GnssMarkov, increment_var, random_walk_var,
+                                                      white_equivalent_var)
+from sins_align_ros.align.inputs.gnss_fix import GnssFix
+from sins_align_ros.align.engines.moving import MovingBaseAlignment
 from sins_align_ros.eval.integrity import MAX_OUTSIDE, run_integrity
 from sins_align_ros.eval.run import run_pipeline
 from sins_align_ros.eval.scenarios import simulate
@@ -254,7 +254,7 @@ def test_a_position_only_robots_tilt_claim_is_honest_with_the_correlated_error_t
     be: more than 5 % of the 1-s rows have a tilt outside 3 sigma. Told the error, each
     fix's noise gets its white equivalent (about 26 m at 0.4 s) and every row is
     inside, the tilt sigma about twice as wide. The course heading aid
-    (align/course_heading.py) is off in both arms: it is not what is tested, and with it the
+    (align/stages/course_heading.py) is off in both arms: it is not what is tested, and with it the
     white arm is not silent on this seed (0 % of rows outside: the heading it finds keeps the
     tilt honest here, which is not a property of the position model).
     """

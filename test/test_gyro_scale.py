@@ -1,12 +1,12 @@
-"""Gyro scale factors as states of the kf/ukf engines (issue 44; align/gyro_scale.py)."""
+"""Gyro scale factors as states of the kf/ukf engines (issue 44; align/engines/gyro_scale.py)."""
 import math
 
 import numpy as np
 import pytest
 
-from sins_align_ros.align.gyro_scale import SCALE_STATE_FACTOR
-from sins_align_ros.align.navigation import IntegratedNavigation
-from sins_align_ros.align.rotation_error import COHERENCE_FACTOR
+from sins_align_ros.align.engines.gyro_scale import SCALE_STATE_FACTOR
+from sins_align_ros.align.engines.navigation import IntegratedNavigation
+from sins_align_ros.align.engines.rotation_error import COHERENCE_FACTOR
 from sins_align_ros.eval.integrity import run_integrity
 from sins_align_ros.eval.run import run_pipeline
 from sins_align_ros.eval.scenarios import simulate

@@ -5,7 +5,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from sins_align_ros.align.heading import HeadingBuffer, take_heading, yaw_of, yaw_row, yaw_update
+from sins_align_ros.align.inputs.heading import (HeadingBuffer, take_heading, yaw_of, yaw_row,
+                                                 yaw_update)
 from sins_align_ros.align.session import AlignmentSession
 from sins_align_ros.eval.integrity import published_sigma
 from sins_align_ros.eval.run import run_pipeline, run_scenario

@@ -125,7 +125,7 @@ def test_vehicle_frame_turns_vectors_and_covariances_and_renames_the_frame():
 def test_odometry_bytes_are_the_message_rclpy_reads():
     from nav_msgs.msg import Odometry as OdometryMsg
 
-    from sins_align_ros.align.odometry import Odometry
+    from sins_align_ros.ros.odometry import Odometry
     from sins_align_ros.io.cdr import odometry_head
     from sins_align_ros.ros.messages import odometry_bodies
     k = 3

@@ -1,12 +1,12 @@
-"""The input rules (align/imu_input.py, align/gnss_input.py) and the GNSS gate, no ROS."""
+"""The input rules (align/inputs/imu_input.py, gnss_input.py) and the GNSS gate, no ROS."""
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from sins_align_ros.align.gnss_input import GnssInput
-from sins_align_ros.align.imu_input import OK, RATE_WINDOW, RESET, SKIP, START, ImuInput
-from sins_align_ros.align.moving import MovingBaseAlignment
+from sins_align_ros.align.inputs.gnss_input import GnssInput
+from sins_align_ros.align.inputs.imu_input import OK, RATE_WINDOW, RESET, SKIP, START, ImuInput
+from sins_align_ros.align.engines.moving import MovingBaseAlignment
 from sins_align_ros.align.pipeline import AlignmentPipeline
 from sins_align_ros.align.session import feed_arrays
 from sins_align_ros.nav.frames import attitude_error, euler_to_dcm, quat_to_dcm
@@ -88,7 +88,7 @@ def test_gnss_variance_and_speed_checks_at_their_edges():
     """The scalar checks of the reported variances and the speed: non-finite, zero and
     negative variances are implausible, a finite velocity whose square overflows is out of
     range (not a non-finite value), and 500 m/s itself is in range."""
-    from sins_align_ros.align.gnss_input import reported_variances
+    from sins_align_ros.align.inputs.gnss_input import reported_variances
     for bad in ((np.nan, 1.0), (1.0, np.inf), (-np.inf, 1.0), (0.0, 1.0), (1.0, -2.0), (1.0,)):
         assert reported_variances(bad) is None
     np.testing.assert_array_equal(reported_variances([0.5, 2.0, 9.0]), [0.5, 2.0])
@@ -177,8 +177,8 @@ def test_forced_acceptances_without_recovery_restart_alignment():
     eng = MovingBaseAlignment(np.eye(3), np.zeros(3), 0.5, 2.0, 0.0, np.eye(10) * 1e-4,
                               np.zeros(10), np.eye(2) * 0.04, gate_probability=0.9999,
                               gate_max_rejects=2)
-    from sins_align_ros.align.gnss_fix import GnssFix
-    from sins_align_ros.align.moving import FilterDiverged
+    from sins_align_ros.align.inputs.gnss_fix import GnssFix
+    from sins_align_ros.align.engines.moving import FilterDiverged
     eng.step_imu(np.zeros(3), np.array([0.0, 0.0, 9.8 * 0.01]), 0.01)
     with pytest.raises(FilterDiverged, match='disagree'):
         for k in range(1, 20):

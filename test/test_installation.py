@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 from sins_align_ros.align import params as prm
-from sins_align_ros.align.gnss_fix import GnssFix
-from sins_align_ros.align.installation import Installation
+from sins_align_ros.align.inputs.gnss_fix import GnssFix
+from sins_align_ros.align.inputs.installation import Installation
 from sins_align_ros.eval.run import run_pipeline, run_scenario
 from sins_align_ros.eval.scenarios import named, simulate
 from sins_align_ros.nav import coarse, earth
@@ -156,7 +156,7 @@ def test_mast_antenna_aligns_as_well_as_a_co_located_one(flt, seed):
     assert run.pipeline.phase == 'aligned'
     assert np.all(np.abs(f.euler) <= 3.0 * f.sigma + 1e-9)
     assert abs(f.euler[2]) < abs(g.euler[2]) + 1.0 * ARCMIN
-    # the arm's coupling with the attitude is taken as noise (align/installation.py): a
+    # the arm's coupling with the attitude is taken as noise (align/inputs/installation.py): a
     # little wider, never narrower than the error
     assert f.sigma[2] < 2.0 * g.sigma[2]
 
@@ -170,7 +170,7 @@ def test_ignoring_the_mast_costs_the_heading():
 
 
 def test_the_self_check_finds_an_untold_mast_and_uses_it():
-    """Told no arm, the coarse window's velocities show the mast (align/arm_check.py):
+    """Told no arm, the coarse window's velocities show the mast (align/stages/arm_check.py):
     its arm replaces the configured one and the attitude is as good as told it. (Without
     the fit: heading 4.7' off, tilt 0.86' under a 0.05' sigma, 17 sigma.)"""
     told = run_scenario('ship_underway_mast', 1000, 'kf')
@@ -224,7 +224,7 @@ def test_a_moored_ship_with_a_mast_antenna_is_not_taken_for_moving():
 
 def test_the_sideslip_check_judges_the_velocity_in_the_vehicle_frame():
     """Forward (with a 20 deg crab) is a vehicle; 90 deg is an IMU turned about the vertical."""
-    from sins_align_ros.align.sideslip import MIN_EPOCHS, SideslipCheck
+    from sins_align_ros.align.stages.sideslip import MIN_EPOCHS, SideslipCheck
     C = euler_to_dcm([0.0, 0.0, 0.3])                       # yaw 0.3 rad (REP-103, from east)
 
     def velocity(angle_deg, speed=3.0):
@@ -245,7 +245,7 @@ def test_the_sideslip_check_judges_the_velocity_in_the_vehicle_frame():
 
 @pytest.mark.parametrize('name', ['ship_underway', 'seed003_car'])
 def test_an_imu_turned_about_the_vertical_and_untold_is_found_under_way(name):
-    """A yaw mounting leaves gravity alone: the GNSS velocity shows it (align/sideslip.py).
+    """A yaw mounting leaves gravity alone: the GNSS velocity shows it (align/stages/sideslip.py).
     Before: the ship published 91 deg off (its IMU's heading) under a 0.09 deg sigma,
     aligned; the car 123 deg off under 5.5 deg."""
     sc = named(name, 300.0)

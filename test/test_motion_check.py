@@ -9,12 +9,13 @@ import math
 import numpy as np
 import pytest
 
-from sins_align_ros.align.gnss_noise_check import velocity_jitter
-from sins_align_ros.align.grade_check import (ACCEL_SCALE_BY_GYRO_NOISE, ACCEL_VRW_BY_GYRO_NOISE,
-                                              SCALE_BY_GYRO_NOISE)
-from sins_align_ros.align.motion_check import TURN_RATE, WINDOW_S, MotionCheck
-from sins_align_ros.align.noise_estimates import NOISE_RATIO, difference_density
-from sins_align_ros.align.rotation_error import COHERENCE_FACTOR
+from sins_align_ros.align.stages.gnss_noise_check import velocity_jitter
+from sins_align_ros.align.stages.grade_check import (ACCEL_SCALE_BY_GYRO_NOISE,
+                                                     ACCEL_VRW_BY_GYRO_NOISE,
+                                                     SCALE_BY_GYRO_NOISE)
+from sins_align_ros.align.stages.motion_check import TURN_RATE, WINDOW_S, MotionCheck
+from sins_align_ros.align.stages.noise_estimates import NOISE_RATIO, difference_density
+from sins_align_ros.align.engines.rotation_error import COHERENCE_FACTOR
 from sins_align_ros.eval.integrity import run_integrity
 from sins_align_ros.eval.run import run_scenario
 from sins_align_ros.models.stationary import NoiseSpec

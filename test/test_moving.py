@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from conftest import shared_data
-from sins_align_ros.align.moving import MovingBaseAlignment, true_specific_force
+from sins_align_ros.align.engines.moving import MovingBaseAlignment, true_specific_force
 from sins_align_ros.align.pipeline import AlignmentPipeline
 from sins_align_ros.align.session import feed_arrays
 from sins_align_ros.filters.adaptive import SageHusa
@@ -183,7 +183,7 @@ def test_seed000_engine_caps_a_wide_heading_prior_and_publishes_the_coarse_one()
     """A 60 deg coarse heading sigma: the cubature filter gets 45 deg (13 states: points
     within +-162 deg, inside the circle), the published heading variance is the coarse
     one until GNSS has told the filter something."""
-    from sins_align_ros.align.prior_shaping import HEADING_PRIOR_MAX
+    from sins_align_ros.align.engines.prior_shaping import HEADING_PRIOR_MAX
     P0 = np.diag(np.r_[[0.1 ** 2] * 2, [2.0 ** 2] * 2, [(0.5 * DEG) ** 2] * 2,
                        (60.0 * DEG) ** 2, [(1.0 * DPH) ** 2] * 3])
     eng = MovingBaseAlignment(np.eye(3), np.zeros(3), 0.5, 2.0, 0.0, P0, np.zeros(10),
@@ -410,7 +410,7 @@ def _underway_run(seed, accel_bias):
     Starts from a coarse-like error (0.1, 0.1, 1 deg; sigma twice that); returns the
     engine and, every second, the misalignment and its 1-sigma (rad, (600, 3) each).
     """
-    from sins_align_ros.align.moving import model_noise
+    from sins_align_ros.align.engines.moving import model_noise
     from sins_align_ros.models.stationary import NoiseSpec
     sc = scenario('ship_underway')
     b = ScenarioStream(sc, seed=seed, imu_rate_hz=50.0).next_block(int(sc.duration * 50))

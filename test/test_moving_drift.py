@@ -10,10 +10,10 @@ import math
 import numpy as np
 import pytest
 
-from sins_align_ros.align.aided import MAX_PREDICT
-from sins_align_ros.align.force import ANGLE_UNKNOWN_VAR
-from sins_align_ros.align.prior_shaping import cap_angles
-from sins_align_ros.align.moving import I_EPS, I_PHI, MovingBaseAlignment
+from sins_align_ros.align.engines.aided import MAX_PREDICT
+from sins_align_ros.align.engines.force import ANGLE_UNKNOWN_VAR
+from sins_align_ros.align.engines.prior_shaping import cap_angles
+from sins_align_ros.align.engines.moving import I_EPS, I_PHI, MovingBaseAlignment
 from sins_align_ros.filters.cubature import chol_lower
 from sins_align_ros.models import large_azimuth as la
 from sins_align_ros.nav import earth
@@ -210,7 +210,7 @@ def _ship_with_gyro_bias(drift_in_body, seconds=900.0, rate=50.0):
     """
     from dataclasses import replace
     from types import SimpleNamespace
-    from sins_align_ros.align.moving import model_noise
+    from sins_align_ros.align.engines.moving import model_noise
     from sins_align_ros.models.stationary import NoiseSpec
     from sins_align_ros.sim.presets import SENSOR_GRADES, scenario
     from sins_align_ros.sim.scenario import ScenarioStream

@@ -15,12 +15,12 @@ import math
 import numpy as np
 import pytest
 
-from sins_align_ros.align.force import ANGLE_UNKNOWN_VAR
-from sins_align_ros.align.prior_shaping import HEADING_PRIOR_MAX
-from sins_align_ros.align.gnss_fix import GnssFix
-from sins_align_ros.align.force import LOST_WAIT_S
-from sins_align_ros.align.heading import HeadingFix
-from sins_align_ros.align.moving import I_PHI, MovingBaseAlignment
+from sins_align_ros.align.engines.force import ANGLE_UNKNOWN_VAR
+from sins_align_ros.align.engines.prior_shaping import HEADING_PRIOR_MAX
+from sins_align_ros.align.inputs.gnss_fix import GnssFix
+from sins_align_ros.align.engines.force import LOST_WAIT_S
+from sins_align_ros.align.inputs.heading import HeadingFix
+from sins_align_ros.align.engines.moving import I_PHI, MovingBaseAlignment
 from sins_align_ros.nav import earth
 from sins_align_ros.units import DEG, DPH, UG
 from tolerance import assert_roundoff

@@ -1,4 +1,4 @@
-"""Gyro scale factors as states of the seed 000 engine (ASCKF; issue 44, align/gyro_scale.py).
+"""Gyro scale factors as states of the seed 000 engine (ASCKF; issue 44, engines/gyro_scale.py).
 
 The square-root filter appends the states to its factor ``S`` (``ASCKF.append_states``), the
 nonlinear transition takes ``C~ diag(w_b) ds`` into its drift, and a turning car's heading
@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from sins_align_ros.align.moving import I_EPS, MovingBaseAlignment
+from sins_align_ros.align.engines.moving import I_EPS, MovingBaseAlignment
 from sins_align_ros.eval.integrity import run_integrity
 from sins_align_ros.eval.run import run_pipeline
 from sins_align_ros.eval.scenarios import simulate

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from sins_align_ros.align.navigation import IntegratedNavigation, gyro_tau, model_noise
+from sins_align_ros.align.engines.navigation import IntegratedNavigation, gyro_tau, model_noise
 from sins_align_ros.align.pipeline import AlignmentPipeline
 from sins_align_ros.align.session import feed_arrays
 from sins_align_ros.filters import kf as lkf
@@ -223,7 +223,7 @@ def test_mvbakf_posterior_moments():
 
 def test_a_dropped_horizontal_force_becomes_velocity_noise():
     """Below FORCE_SIGNIFICANCE sigma the force leaves F, and P_psi |f_h|^2 T^2 joins Q_v."""
-    from sins_align_ros.align.force import FORCE_SIGNIFICANCE
+    from sins_align_ros.align.engines.force import FORCE_SIGNIFICANCE
     P0, Qc = model_noise(15, [0.1, 0.1, 0.2], 0.1, 1.0, (200 * DPH, 0.0), (5000 * UG, 0.0),
                          0.0, 0.0, 300.0, 1000.0)
     eng = IntegratedNavigation(np.eye(3), np.zeros(3), LAT, 0.0, 0.0, P0, Qc, np.eye(6),
@@ -265,8 +265,8 @@ def test_a_lost_heading_takes_no_information_from_the_horizontal_force(method):
     and the update shrinks the heading variance; so does a heading lost for longer than
     ``LOST_WAIT_S`` with no acquisition (the linear model's own convergence is let try).
     """
-    from sins_align_ros.align.force import ANGLE_UNKNOWN_VAR
-    from sins_align_ros.align.gnss_fix import GnssFix
+    from sins_align_ros.align.engines.force import ANGLE_UNKNOWN_VAR
+    from sins_align_ros.align.inputs.gnss_fix import GnssFix
     n = 18 if method == 'ukf' else 15
     P0, Qc = model_noise(n, [0.002, 0.002, 0.5], 0.1, 1.0, (200 * DPH, 0.0), (500 * UG, 0.0),
                          0.0, 0.0, 300.0, 1000.0)
@@ -295,7 +295,7 @@ def test_a_lost_heading_takes_no_information_from_the_horizontal_force(method):
     assert shrink[True] == pytest.approx(1.0, abs=1e-6)
     assert shrink[False] < 1.0 - 1e-3          # measurably (kf 0.5x, ukf 0.98x from 29 deg)
     # lost for longer than the wait for an acquisition: the linear model is let try
-    from sins_align_ros.align.force import LOST_WAIT_S
+    from sins_align_ros.align.engines.force import LOST_WAIT_S
     eng = IntegratedNavigation(np.eye(3), np.array([1.0, 0.0, 0.0]), LAT, 0.0, 0.0, P0, Qc,
                                R, method=method, heading_lost=True)
     eng.lost_s = LOST_WAIT_S
@@ -525,7 +525,7 @@ def test_the_interval_full_search_agrees_with_the_running_sum():
     """The samples after which a prediction runs (GnssAidedEngine._interval_full): the
     shortcut for an interval far from full and the running sum agree, at the 2-s edge,
     with a zero and a negative interval."""
-    from sins_align_ros.align.aided import MAX_PREDICT
+    from sins_align_ros.align.engines.aided import MAX_PREDICT
     P0, Qc = model_noise(15, [1e-3] * 3, 0.1, 1.0, (DPH, 0.0), (100 * UG, 0.0), 0.0, 0.0,
                          100.0, 1000.0)
     eng = IntegratedNavigation(np.eye(3), np.zeros(3), LAT, 0.0, 0.0, P0, Qc, np.eye(6),

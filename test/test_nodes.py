@@ -300,7 +300,7 @@ def test_end_to_end_simulator_and_alignment_node_against_truth(ros_context, doma
     Both nodes run as their own processes, started as ``ros2 run`` does; this test only
     observes the topics.
     """
-    from sins_align_ros.align.limits import scenario_limits
+    from sins_align_ros.eval.limits import scenario_limits
     from sins_align_ros.nav.frames import attitude_error, quat_to_dcm
     from sins_align_ros.sim.presets import scenario
     from sins_align_ros.units import ARCMIN
@@ -358,7 +358,7 @@ def test_end_to_end_simulator_and_alignment_node_against_truth(ros_context, doma
     # no sample lost once the stream reached the node (discovery may take the first seconds)
     assert int(vals['imu_accepted']) == round(float(vals['elapsed_s']) * 100), vals
     # the forecast (issue 23): the same time to aligned from coarse alignment on, and the
-    # outcome when it came (at rest it is exact to the model: align/expectation.py)
+    # outcome when it came (at rest it is exact to the model: align/forecast/expectation.py)
     fc = [(_diag_values(m)['phase'], _diag_values(m)['expected_aligned_at_s']) for m in diag]
     fc = [(ph, float(v)) for ph, v in fc if ph in ('coarse', 'fine')]
     assert fc and max(v for _, v in fc) - min(v for _, v in fc) <= 3.0, fc

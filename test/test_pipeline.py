@@ -5,7 +5,7 @@ import pytest
 from sins_align_ros.align.output import Output
 from sins_align_ros.align.pipeline import ALIGNED, COARSE, FINE, AlignmentPipeline
 from sins_align_ros.align.session import feed_arrays
-from sins_align_ros.align.limits import scenario_limits
+from sins_align_ros.eval.limits import scenario_limits
 from sins_align_ros.nav.frames import (attitude_error, euler_error, euler_to_dcm, quat_to_dcm,
                                        rotvec_to_dcm)
 from sins_align_ros.sim.gnss import GnssSpec
@@ -63,9 +63,9 @@ def test_stationary_filter_restages_only_after_a_large_initial_misalignment():
     leaves of a large initial misalignment (10 deg: phi^2/2 = 52'); from the 0.5 deg a
     navigation-grade coarse alignment leaves it only threw away the bias/heading
     correlation: the 10/12-state heading sigma went from 3.4' back to 29' at 270 s."""
-    from sins_align_ros.align.factory import noise_spec
+    from sins_align_ros.align.engines.factory import noise_spec
     from sins_align_ros.align.params import defaults
-    from sins_align_ros.align.stationary import restage_helps
+    from sins_align_ros.align.engines.stationary import restage_helps
     lat = 34.0 * DEG
     nav = noise_spec(defaults())                               # 0.01 deg/h: 2.8' limit
     mems = noise_spec({**defaults(), 'gyro_bias_dph': 200.0})
@@ -161,8 +161,8 @@ def test_a_prediction_that_fails_ends_the_stage_wherever_it_falls_in_a_block(ext
     given, and the last rows are FINE (as the one-sample path does).
     """
     from types import SimpleNamespace
-    from sins_align_ros.align import aided
-    from sins_align_ros.align.gnss_gate import FilterDiverged
+    from sins_align_ros.align.engines import aided
+    from sins_align_ros.align.engines.gnss_gate import FilterDiverged
     sc = scenario('seed003_car', duration=100.0)
     b = ScenarioStream(sc, seed=2).next_block(10000)
     p = AlignmentPipeline(alignment_params(sc, 'kf', coarse_duration=40.0))

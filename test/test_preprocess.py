@@ -3,7 +3,7 @@ the delay compensation (no lag against truth), measured on simulated severe-sea 
 import numpy as np
 import pytest
 
-from sins_align_ros.align.preprocess import Preprocessor, preprocess, upsample_increments
+from sins_align_ros.align.inputs.preprocess import Preprocessor, preprocess, upsample_increments
 from sins_align_ros.sim.presets import scenario
 from sins_align_ros.sim.scenario import ScenarioStream
 from tolerance import roundoff

@@ -3,7 +3,7 @@
 The sequences mix good IMU samples with non-finite values, repeated, backward and
 jumping stamps, gaps and saturated values, and GNSS fixes and velocities that are
 good, absurd or non-finite. They go through the same input checks as the node and
-the replay tool (:class:`~sins_align_ros.align.imu_input.ImuInput`). Whatever
+the replay tool (:class:`~sins_align_ros.align.inputs.imu_input.ImuInput`). Whatever
 arrives: no exception escapes, and every attitude the pipeline gives is finite,
 a unit quaternion, with a finite covariance.
 """
@@ -14,8 +14,8 @@ import pytest
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
-from sins_align_ros.align.gnss_input import GnssInput
-from sins_align_ros.align.imu_input import OK, RESET, START, ImuInput
+from sins_align_ros.align.inputs.gnss_input import GnssInput
+from sins_align_ros.align.inputs.imu_input import OK, RESET, START, ImuInput
 from sins_align_ros.align.pipeline import AlignmentPipeline
 from sins_align_ros.units import G0
 

@@ -8,7 +8,7 @@ import pytest
 
 from conftest import ROOT, shared_data
 from sins_align_ros.align import params as prm
-from sins_align_ros.align.limits import scenario_limits
+from sins_align_ros.eval.limits import scenario_limits
 from sins_align_ros.cli.replay import main as replay
 from sins_align_ros.io.bag import write_scenario_bag
 from sins_align_ros.io.results import COLUMNS, read_csv

@@ -12,10 +12,10 @@ error, and a receiver reporting a velocity sigma ten times too small is caught.
 import numpy as np
 import pytest
 
-from sins_align_ros.align.gnss_fix import GnssFix, uses_reported_covariance
-from sins_align_ros.align.gnss_markov import white_equivalent_var
-from sins_align_ros.align.moving import MovingBaseAlignment
-from sins_align_ros.align.navigation import IntegratedNavigation, model_noise
+from sins_align_ros.align.inputs.gnss_fix import GnssFix, uses_reported_covariance
+from sins_align_ros.align.engines.gnss_markov import white_equivalent_var
+from sins_align_ros.align.engines.moving import MovingBaseAlignment
+from sins_align_ros.align.engines.navigation import IntegratedNavigation, model_noise
 from sins_align_ros.align import params as prm
 from sins_align_ros.eval.integrity import run_integrity
 from sins_align_ros.eval.run import run_pipeline

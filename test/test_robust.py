@@ -212,7 +212,7 @@ def test_pipeline_aligns_the_usv_in_severe_sea_with_outliers(fine_filter):
 def test_robust_engine_feed_measures_gnss_velocity_and_reports_its_internals():
     """RobustAlignment.feed on 120 s of the high-grade USV from 2/2/10 deg: the VBCH engine
     pulls the misalignment in and its status carries R, gamma and the bias estimates."""
-    from sins_align_ros.align.robust import RobustAlignment
+    from sins_align_ros.align.engines.robust import RobustAlignment
     from sins_align_ros.nav.frames import attitude_error
     from sins_align_ros.sim.presets import scenario
     from sins_align_ros.sim.scenario import ScenarioStream
@@ -239,8 +239,8 @@ def test_capped_heading_prior_publishes_the_coarse_prior_until_the_filter_learns
     """A 90 deg coarse heading sigma: the filter gets 45 deg (cubature points inside the
     circle), the published heading variance is the coarse one before any epoch and the
     information-form combination 1 / (1/P - 1/cap^2 + 1/sigma0^2) after learning."""
-    from sins_align_ros.align.prior_shaping import HEADING_PRIOR_MAX, capped_heading_prior
-    from sins_align_ros.align.robust import RobustAlignment
+    from sins_align_ros.align.engines.prior_shaping import HEADING_PRIOR_MAX, capped_heading_prior
+    from sins_align_ros.align.engines.robust import RobustAlignment
     sig = np.array([0.5, 0.5, 90.0]) * DEG
     P0 = np.diag(np.r_[sig ** 2, [0.01] * 3, [(5 * DPH) ** 2] * 3, [(500 * UG) ** 2] * 3])
     P0[0, 2] = P0[2, 0] = 0.5 * sig[0] * sig[2]
@@ -294,7 +294,7 @@ def test_usv_vbch_ends_inside_3_sigma_and_within_the_seed_heading(grade, seed, t
 def test_trend_outliers_finds_the_spikes_and_nothing_in_clean_noise():
     """The coarse stage's screen: a smooth drift plus 0.05 m/s noise, two 0.5-1 m/s
     glitches: exactly the glitches; the same without them: nothing (seeded)."""
-    from sins_align_ros.align.coarse_stage import trend_outliers
+    from sins_align_ros.align.stages.coarse_stage import trend_outliers
     rng = np.random.default_rng(7)
     t = np.arange(60.0)
     r = np.column_stack([0.3 + 2e-3 * t, -0.1 + 1e-4 * t * t, 0.02 * np.sin(t / 20)])

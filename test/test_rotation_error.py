@@ -4,10 +4,11 @@ import math
 import numpy as np
 import pytest
 
-from sins_align_ros.align.rotation_error import (COHERENCE_FACTOR, HEADING_COHERENCE_FACTOR,
-                                                 ROTATION_MEMORY_S, RotationError,
-                                                 unseparable_tilt_var)
-from sins_align_ros.align.grade_check import SCALE_BY_GYRO_NOISE
+from sins_align_ros.align.engines.rotation_error import (COHERENCE_FACTOR,
+                                                         HEADING_COHERENCE_FACTOR,
+                                                         ROTATION_MEMORY_S, RotationError,
+                                                         unseparable_tilt_var)
+from sins_align_ros.align.stages.grade_check import SCALE_BY_GYRO_NOISE
 from sins_align_ros.eval.integrity import run_integrity
 from sins_align_ros.eval.run import run_pipeline
 from sins_align_ros.eval.scenarios import simulate

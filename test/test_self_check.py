@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 from sins_align_ros.align import params as prm
-from sins_align_ros.align.gnss_buffer import GnssBuffer
-from sins_align_ros.align.grade_check import GYRO_BIAS_PER_ARW_MOVING
-from sins_align_ros.align.noise_estimates import (coherent, difference_density,
-                                                  robust_difference_sigma, white_density)
-from sins_align_ros.align.self_check import check
+from sins_align_ros.align.inputs.gnss_buffer import GnssBuffer
+from sins_align_ros.align.stages.grade_check import GYRO_BIAS_PER_ARW_MOVING
+from sins_align_ros.align.stages.noise_estimates import (coherent, difference_density,
+                                                         robust_difference_sigma, white_density)
+from sins_align_ros.align.stages.self_check import check
 from sins_align_ros.nav import earth
 from sins_align_ros.units import DEG, DPH, DPSH, UG
 
@@ -242,7 +242,7 @@ def test_the_lever_arm_grid_scores_equal_the_fit_at_each_heading():
     """The vectorised heading grid of the lever-arm fit (``arm_check._grid_scores``, in
     chunks) scores every heading as the one-by-one clipped fit does, to round-off, with
     outliers among the velocities."""
-    from sins_align_ros.align import arm_check as ac
+    from sins_align_ros.align.stages import arm_check as ac
     rng = np.random.default_rng(7)
     n = 40
     U_l = np.cumsum(rng.normal(size=(n, 3)), axis=0)
@@ -277,7 +277,7 @@ def test_latitude_not_set_is_estimated_from_the_earth_rate_and_used():
 def test_latitude_not_set_with_a_tactical_gyro_is_unknown_and_so_is_the_heading():
     """1 deg/h gyro bias: the latitude to 4 deg only; not used, no gyro blame, heading
     unknown for the latitude's sake (the gyro alone would find north)."""
-    from sins_align_ros.align.self_check import heading_warning
+    from sins_align_ros.align.stages.self_check import heading_warning
     cfg = {**DEFAULTS, 'gyro_bias_dph': 1.0, 'gyro_arw_dpsh': 0.05}
     pos = np.array([0.0, 108.0 * DEG, 0.0])
     c = check(still(gyro_bias=(0.0, 0.5 * DPH, 0.0), arw=0.05 * DPSH), pos, cfg,
@@ -303,8 +303,8 @@ def test_a_moving_mems_triad_gets_its_class_biases_and_scale_factors_never_narro
     the accelerometer bias to the industrial class's 9000 ug, and the gyro and
     accelerometer scale factors and misalignment to the class's (issue 44); a model told
     more keeps it."""
-    from sins_align_ros.align.grade_check import (ACCEL_SCALE_BY_GYRO_NOISE,
-                                                  GYRO_BIAS_BY_GYRO_NOISE_MOVING)
+    from sins_align_ros.align.stages.grade_check import (ACCEL_SCALE_BY_GYRO_NOISE,
+                                                         GYRO_BIAS_BY_GYRO_NOISE_MOVING)
     c = check(still(arw=0.42 * DPSH, vrw=120.0 * UG), POS, DEFAULTS, at_rest=False)
     assert c.widened['gyro_bias_dph'] == GYRO_BIAS_BY_GYRO_NOISE_MOVING[2][1] == 500.0
     assert c.widened['accel_bias_ug'] == 9000.0
@@ -325,8 +325,8 @@ def test_a_vibrating_chassis_raises_the_bias_instability_only_to_the_consumer_cl
     on a 0.42 deg/sqrt(h) gyro): the white noise and the bias are raised by all of it
     (67 x 37 deg/h), the bias instability by at most the consumer class's 3 deg/sqrt(h)
     (15 x 3 = 45 deg/h, not 15 x 37 = 555); at rest the noise counts whole, as before."""
-    from sins_align_ros.align.grade_check import (GYRO_INSTABILITY_PER_ARW,
-                                                  GYRO_NOISE_FOR_INSTABILITY_MOVING)
+    from sins_align_ros.align.stages.grade_check import (GYRO_INSTABILITY_PER_ARW,
+                                                         GYRO_NOISE_FOR_INSTABILITY_MOVING)
     window = still(arw=37.0 * DPSH, vrw=120.0 * UG)
     c = check(window, POS, DEFAULTS, at_rest=False)
     arw = c.widened['gyro_arw_dpsh']
@@ -341,9 +341,9 @@ def test_a_vibrating_chassis_raises_the_bias_instability_only_to_the_consumer_cl
 
 
 def test_the_navigation_and_tactical_classes_are_as_before():
-    from sins_align_ros.align.grade_check import (ACCEL_BIAS_BY_GYRO_NOISE,
-                                                  ACCEL_SCALE_BY_GYRO_NOISE,
-                                                  GYRO_BIAS_BY_GYRO_NOISE_MOVING)
+    from sins_align_ros.align.stages.grade_check import (ACCEL_BIAS_BY_GYRO_NOISE,
+                                                         ACCEL_SCALE_BY_GYRO_NOISE,
+                                                         GYRO_BIAS_BY_GYRO_NOISE_MOVING)
     assert ACCEL_BIAS_BY_GYRO_NOISE[:2] == ((0.003, 100.0), (0.15, 500.0))
     assert [v for _, v in ACCEL_SCALE_BY_GYRO_NOISE[:2]] == [(0.0, 0.0)] * 2
     assert [v for _, v in GYRO_BIAS_BY_GYRO_NOISE_MOVING[:2]] == [0.0, 0.0]

@@ -11,10 +11,10 @@ import math
 import numpy as np
 import pytest
 
-from sins_align_ros.align import slow_monitor
-from sins_align_ros.align.gnss_fix import GnssFix
-from sins_align_ros.align.slow_monitor import (MAX_LEG_S, MAX_YAW_RATE, RATE_SPAN,
-                                               SlowErrorMonitor, YawRate)
+from sins_align_ros.align.stages import slow_monitor
+from sins_align_ros.align.inputs.gnss_fix import GnssFix
+from sins_align_ros.align.stages.slow_monitor import (MAX_LEG_S, MAX_YAW_RATE, RATE_SPAN,
+                                                      SlowErrorMonitor, YawRate)
 from sins_align_ros.eval.integrity import (MAX_OUTSIDE, outside_shares, published_sigma,
                                            run_integrity)
 from sins_align_ros.eval.run import run_pipeline

@@ -9,9 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from sins_align_ros.align import still_watch
-from sins_align_ros.align.still_watch import (MOVING_WITHOUT_GNSS, N_GATED, Coast, MotionWatch,
-                                              cruise_floor)
+from sins_align_ros.align.engines import still_watch
+from sins_align_ros.align.engines.still_watch import (MOVING_WITHOUT_GNSS, N_GATED, Coast,
+                                                      MotionWatch, cruise_floor)
 from sins_align_ros.eval.integrity import run_integrity
 from sins_align_ros.eval.recordings import read_psins_log, run_psins
 from sins_align_ros.eval.run import run_pipeline, without_gnss

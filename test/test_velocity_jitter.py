@@ -12,11 +12,11 @@ import math
 import numpy as np
 
 from sins_align_ros.align import params as prm
-from sins_align_ros.align.gnss_fix import GnssFix
-from sins_align_ros.align.gnss_noise_check import (JITTER_CHUNK_S, JITTER_COUNTED,
-                                                   _velocity_jitter, velocity_jitter)
-from sins_align_ros.align.moving import MovingBaseAlignment
-from sins_align_ros.align.self_check import SelfCheck
+from sins_align_ros.align.inputs.gnss_fix import GnssFix
+from sins_align_ros.align.stages.gnss_noise_check import (JITTER_CHUNK_S, JITTER_COUNTED,
+                                                          _velocity_jitter, velocity_jitter)
+from sins_align_ros.align.engines.moving import MovingBaseAlignment
+from sins_align_ros.align.stages.self_check import SelfCheck
 from sins_align_ros.sim.imu import ImuErrors, ImuSpec
 from sins_align_ros.units import DEG, UG
 

@@ -4,11 +4,17 @@
 :class:`Rows` holds fine-phase rows before conversion, so that a run of them is
 converted to quaternions and Euler sigmas in one vectorised pass (:func:`assemble`).
 """
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..nav.frames import dcm_to_euler, dcm_to_quat, euler_sigma, euler_sigma_one
+
+#: variance of an angle known to be anywhere in (-pi, pi] (uniform): pi^2 / 3, rad^2; a
+#: published heading with this variance is an unknown heading, not a claim
+ANGLE_UNKNOWN_VAR = math.pi ** 2 / 3.0
+HEADING_UNKNOWN_VAR = ANGLE_UNKNOWN_VAR
 
 
 @dataclass

@@ -25,18 +25,19 @@ import math
 
 import numpy as np
 
-from . import coarse_stage, motion
+from .stages import coarse_stage
+from .inputs import motion
 from . import params as prm
-from .expectation import Forecaster
-from .factory import is_aided, noise_spec
-from .fine_stage import ALIGNED, FINE, Clock
-from .gnss_buffer import GnssBuffer
-from .handover import fine_stage_for, hand_over
-from .heading import HeadingBuffer
-from .installation import Installation
+from .forecast.expectation import Forecaster
+from .engines.factory import is_aided, noise_spec
+from .stages.fine_stage import ALIGNED, FINE, Clock
+from .inputs.gnss_buffer import GnssBuffer
+from .stages.handover import fine_stage_for, hand_over
+from .inputs.heading import HeadingBuffer
+from .inputs.installation import Installation
 from .output import Output, Rows, assemble, unknown
-from .preprocess import Preprocessor
-from .report import ConditionReport, pipeline_status
+from .inputs.preprocess import Preprocessor
+from .forecast.report import ConditionReport, pipeline_status
 
 WAITING, COARSE = 'waiting', 'coarse'
 PHASES = (WAITING, COARSE, FINE, ALIGNED)
@@ -209,7 +210,7 @@ class AlignmentPipeline:
 
         Adds ``var_phi`` (rad^2) to each misalignment variance and ``var_v``
         ((m/s)^2) to each velocity variance (a bridged gap,
-        :class:`~sins_align_ros.align.imu_input.ImuInput`). No effect before fine
+        :class:`~sins_align_ros.align.inputs.imu_input.ImuInput`). No effect before fine
         alignment.
         """
         if self.fine is not None:

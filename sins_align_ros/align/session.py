@@ -26,8 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import params as prm
-from .gnss_input import GnssInput
-from .imu_input import OK, RESET, SKIP, ImuInput
+from .inputs.gnss_input import GnssInput
+from .inputs.imu_input import OK, RESET, SKIP, ImuInput
 from .output import Output
 from .pipeline import AlignmentPipeline
 from ..units import DEG

@@ -17,7 +17,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..align import params as prm
-from ..align.limits import alignment_limits
+from .limits import alignment_limits
 from ..align.params import AVAILABLE_FINE_FILTERS, MOVING_FILTERS
 from ..sim.presets import alignment_params, scenario, translates
 from ..units import ARCMIN, DEG
@@ -163,7 +163,7 @@ def run_all(jobs, procs):
 def limits_of(sc, name):
     """Return the expected final error per ENU axis (rad), the heading band and a note.
 
-    Still-base limit (``align.limits``, seed 002 eq. 15) with the biases projected at
+    Still-base limit (``eval.limits``, seed 002 eq. 15) with the biases projected at
     the final attitude: bias term and IMU noise term over the fine time (duration
     minus coarse time), plus, for the GNSS-aided filters, the heading noise of the
     GNSS velocity reference (``velocity_reference_heading_noise``; a still base's

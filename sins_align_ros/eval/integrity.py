@@ -8,7 +8,7 @@ inside 3 sigma. Per run (:func:`run_integrity`), from the output rows and the tr
   fine row on, where the output has an attitude (rows of a restart back in coarse
   alignment publish no attitude and are not samples);
 - an axis is **published** at a sample unless its variance is that of an unknown
-  angle (``pi^2/3``, :data:`~sins_align_ros.align.fine_stage.HEADING_UNKNOWN_VAR`):
+  angle (``pi^2/3``, :data:`~sins_align_ros.align.output.HEADING_UNKNOWN_VAR`):
   a heading declared unknown claims nothing;
 - **silent wrong** (:func:`silent_wrong`): on some published axis more than 5 % of
   the samples outside 3 sigma, or any sample beyond 5 sigma;
@@ -30,8 +30,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..align.fine_stage import HEADING_UNKNOWN_VAR
-from ..align.limits import alignment_limits
+from ..align import HEADING_UNKNOWN_VAR
+from .limits import alignment_limits
 from ..align.params import defaults
 from ..nav import earth
 from ..units import DEG, DPH, UG
@@ -182,7 +182,7 @@ def cell_stats(runs, limit, spec=None):
 def spec_limit(sc, fine_filter, coarse_duration=None):
     """RMS error per ENU axis (3,) a consistent filter may show, biases at their full 1 sigma.
 
-    The evidence limit (:func:`~sins_align_ros.align.limits.alignment_limits`, seed 002
+    The evidence limit (:func:`~sins_align_ros.eval.limits.alignment_limits`, seed 002
     eq. 15) projects the scenario's actual bias vectors on the ENU axes; here each bias
     term is its unprojected magnitude (accelerometer constant and Gauss-Markov bias /
     g for tilt, gyro constant and Gauss-Markov bias / (W cos L) for heading), the

@@ -192,7 +192,7 @@ def build_report(out, quick=False, runs=None, procs=None, data_dir=None):
          '(`sim.presets.alignment_params`); the error is estimate minus truth at the last '
          'sample, REP-103 roll / pitch / yaw (the heading error is the yaw error with its '
          'sign). **limit**: the still-base accuracy limit of the sensors per ENU axis '
-         '(seed 002 eq. 15, `align.limits`): sqrt(bias term^2 + noise term^2) over the '
+         '(seed 002 eq. 15, `eval.limits`): sqrt(bias term^2 + noise term^2) over the '
          'fine-alignment time, the RMS a filter reaching the limit makes; '
          '"heading RMS / limit" compares the up-axis misalignment RMS with it. '
          '**conv.**: median time after which the heading error stays inside the band '

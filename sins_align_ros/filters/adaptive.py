@@ -22,7 +22,7 @@ class StrongTracking:
     beta : float
         Weakening factor (eq. 9), usually 3.
     lambda_max : float
-        Upper bound of each factor (not in the seed; see ``align/moving.py``).
+        Upper bound of each factor (not in the seed; see ``align/engines/moving.py``).
         ``alpha_i = 0`` keeps state i free of fading (its factor is 1).
     """
 
@@ -146,7 +146,7 @@ class SageHusa:
         full measurement vector this update used (default all); only that block
         of R is estimated. ``lent`` (len(R),): variances the update used on top of R
         because they are known (a lever arm's share of the attitude uncertainty,
-        ``align/aided.py``): they are taken out of the innovations' second moment like
+        ``align/engines/aided.py``): they are taken out of the innovations' second moment like
         ``H P H^T``, and counted with it in the test of which rows R dominates; the
         estimate stays the receiver's own. Returns ``(Q, R)``.
         """

@@ -109,11 +109,11 @@ class ASCKF:
         self.lam = np.ones(n)
         #: (len(R),) or None: known variances the caller lends to the measurement noise
         #: for its next updates (a lever arm's share of the attitude uncertainty,
-        #: ``align/aided.py``); used with R, never estimated into it (:meth:`_R_used`)
+        #: ``align/engines/aided.py``); used with R, never estimated into it (:meth:`_R_used`)
         self.R_lent = None
         #: (n, n) or None: known process noise the caller lends for its next prediction
         #: (the gyro scale-factor/misalignment noise of a turn, the accelerometer's
-        #: force-proportional noise, a dropped force: ``align/aided.py``); used with Q,
+        #: force-proportional noise, a dropped force: ``align/engines/aided.py``); used with Q,
         #: never estimated into it (:meth:`_Q_used`)
         self.Q_lent = None
         self.last = None
@@ -152,7 +152,7 @@ class ASCKF:
 
         Cholesky where ``value`` is definite; a semi-definite one (a state held at zero
         variance, the product ``S S^T`` of a rank-deficient root read back, changed and
-        set again: the Gauss-Markov position noise of ``align/epoch_noise.py`` on a raw
+        set again: the Gauss-Markov position noise of ``align/engines/epoch_noise.py`` on a raw
         MEMS car, ground integrity matrix, seed run aborted with LinAlgError) takes the
         clipped eigen-root, made triangular by ``tria``.
         """
@@ -168,7 +168,7 @@ class ASCKF:
         The factor grows by a diagonal block, ``S <- [[S, 0], [0, diag(sqrt(var))]]``, still
         lower triangular, so ``S S^T`` is ``P`` with the new block and no Cholesky is taken
         again; the new states get no process noise and no fading (proportion 0, as the
-        drift's in ``align/moving.py``; their fading cap is ``var``).
+        drift's in ``align/engines/moving.py``; their fading cap is ``var``).
         """
         var = np.asarray(var, dtype=float)
         n, k = len(self.x), len(var)

@@ -1,7 +1,7 @@
 """The interface the alignment engines use from a filter, and the bookkeeping it shares.
 
-:class:`GaussianFilter` declares what ``align/moving.py``, ``align/robust.py`` and
-``align/navigation.py`` call on their ``self.kf``, whichever filter it is:
+:class:`GaussianFilter` declares what ``align/engines/moving.py``, ``align/engines/robust.py`` and
+``align/engines/navigation.py`` call on their ``self.kf``, whichever filter it is:
 :class:`~sins_align_ros.filters.ckf.CKF`, :class:`~sins_align_ros.filters.asckf.ASCKF`,
 :class:`~sins_align_ros.filters.linear_kf.KF`, :class:`~sins_align_ros.filters.vbakf.VBAKF`,
 :class:`~sins_align_ros.filters.mvbakf.MVBAKF`, :class:`~sins_align_ros.filters.ukf.UKF`,

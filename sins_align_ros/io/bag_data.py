@@ -17,7 +17,7 @@ class BagEvent:
     (covariance[0] = -1); fix ``(status, lat_deg, lon_deg, h, pos_var)``
     with ``pos_var`` (east, north) m^2 as reported, or None when the covariance type
     is unknown; vel ``(v_enu, vel_var)`` with ``vel_var`` (east, north) (m/s)^2 as
-    reported (checked by :class:`~sins_align_ros.align.gnss_input.GnssInput`);
+    reported (checked by :class:`~sins_align_ros.align.inputs.gnss_input.GnssInput`);
     truth ``(q_xyzw,)``.
     """
 

@@ -195,7 +195,7 @@ def derivative18(x, f_n, v_n, C_b_n, lat, h, tau_g, tau_a, w_b=None):
     plus the position-error terms of the linear model; position, drift and Markov rows
     as :func:`F_matrix`. Arguments as there. ``w_b`` (3,) body rate, rad/s: ``x`` then
     has 21 rows, the last three gyro scale-factor errors (random constants, not in seed
-    003; :mod:`sins_align_ros.align.gyro_scale`) that add ``w_b * ds`` to the drift.
+    003; :mod:`sins_align_ros.align.engines.gyro_scale`) that add ``w_b * ds`` to the drift.
     """
     x = np.asarray(x, dtype=float)
     single = x.ndim == 1

@@ -392,7 +392,7 @@ def interval_sums(T, dv_sum, v_sum, C_sum, attitude, dv_sf, v_n, C, dt):
     ``dv_sum``, ``v_sum`` (3,) and, with ``attitude``, ``C_sum`` (3, 3) gain each sample's
     ``dv_sf``, ``v_n dt`` and ``C dt`` (``dv_sf``, ``v_n`` (N, 3), ``C`` (N, 3, 3), ``dt``
     (N,)) one after the other, the order of a sample-by-sample sum, so a block and its
-    samples added singly agree bit for bit (``align.aided.IntervalSums``).
+    samples added singly agree bit for bit (``align.engines.aided.IntervalSums``).
     """
     for k in range(len(dt)):
         h = dt[k]

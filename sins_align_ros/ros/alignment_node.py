@@ -26,7 +26,7 @@ tool drives too, with the input checks and restart rules — and the node publis
   ``mvbakf``, ``ukf``) and ``continue_navigation``: the GNSS/INS solution at every
   IMU sample from the start of fine alignment on, pose in ``odom_frame_id`` (ENU,
   origin where fine alignment started: ``odom_origin_*`` in the diagnostics), twist
-  in the body's frame, the same as ``imu/data``'s (:mod:`sins_align_ros.align.odometry`).
+  in the body's frame, the same as ``imu/data``'s (:mod:`sins_align_ros.ros.odometry`).
 
 Bad input is skipped or bridged, counted by reason in the diagnostics' values,
 logged at most once per :data:`~.diagnostics.LOG_PERIOD_S` per reason, and raises
@@ -72,7 +72,7 @@ from .params import declare
 from .runner import make_executor, run
 from .status import NO_IMU, TypedStatus, imu_stopped, known_euler, typed_state
 from ..align import params as prm
-from ..align.odometry import OdometryFrame
+from .odometry import OdometryFrame
 from ..align.session import AlignmentSession
 from ..io import cdr
 from ..nav import kernels

@@ -23,7 +23,7 @@ from sensor_msgs.msg import Imu
 from .conversions import stamp_to_ns
 from .runner import stop_processes
 from ..nav.frames import attitude_error, quat_to_dcm, quat_to_euler, yaw_to_heading
-from ..align.limits import alignment_limits
+from ..eval.limits import alignment_limits
 from ..align.params import AVAILABLE_FINE_FILTERS, MOVING_FILTERS, NAV_FILTERS
 from ..nav import earth
 from ..sim.presets import alignment_params, scenario, translates

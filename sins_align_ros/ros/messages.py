@@ -9,7 +9,7 @@ import numpy as np
 def odometry_bodies(odo):
     """Return the serialized bodies (K, 85) of ``nav_msgs/Odometry`` from batch ``odo``.
 
-    ``odo``: an :class:`~sins_align_ros.align.odometry.Odometry` of K rows. The columns
+    ``odo``: an :class:`~sins_align_ros.ros.odometry.Odometry` of K rows. The columns
     follow the message: ``pose.pose`` position (3) and orientation (4), its covariance
     (36), ``twist.twist`` linear (3) and angular (3), its covariance (36);
     ``cdr.odometry_head(...) + row.tobytes()`` is the message.

@@ -23,7 +23,7 @@ import numpy as np
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Bool, String
 
-from ..align.fine_stage import HEADING_UNKNOWN_VAR
+from ..align import HEADING_UNKNOWN_VAR
 
 #: the typed topics' QoS: the last value kept for late subscribers
 LATCHED = QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
@@ -88,7 +88,7 @@ def known_euler(out):
     """Return the Euler angles (N, 3) of output rows ``out`` with NaN where unknown.
 
     Yaw is NaN where the misalignment variance about up (``P_phi[2, 2]``) is the unknown
-    angle's (:data:`~sins_align_ros.align.fine_stage.HEADING_UNKNOWN_VAR`, pi^2/3: a heading
+    angle's (:data:`~sins_align_ros.align.output.HEADING_UNKNOWN_VAR`, pi^2/3: a heading
     the sensors cannot observe); roll and pitch are NaN where the east or north one is
     (the IMU's attitude is not the vehicle's: an untold mounting).
     """

@@ -495,13 +495,13 @@ def alignment_params(sc, fine_filter, **overrides):
     mounting) when the scenario has one; the gyro and accelerometer scale factors and
     misalignment where the IMU has them (the accelerometer misalignment's part under
     gravity, a constant horizontal error, joins the accelerometer bias as well:
-    :mod:`~sins_align_ros.align.force_error`).
+    :mod:`~sins_align_ros.align.engines.force_error`).
     ``sc.extra['alignment']`` adds scenario-specific settings; keyword overrides win.
     """
     s = sc.imu
     gyro_bias = float(np.max(np.abs(s.gyro_bias_dph)))
     # the accelerometer misalignment turns gravity into a constant horizontal error, a bias
-    # to the filters (1e-6 g per ppm; align/force_error.py models the rest of it)
+    # to the filters (1e-6 g per ppm; align/engines/force_error.py models the rest of it)
     accel_bias = float(np.hypot(np.hypot(np.max(np.abs(s.accel_bias_ug)), s.accel_markov_ug),
                                 np.max(np.abs(s.accel_misalign_ppm))))
     out = {'fine_filter': fine_filter, 'initial_latitude_deg': float(sc.trajectory.lat_deg),

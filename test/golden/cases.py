@@ -59,8 +59,8 @@ FOG = {'gyro_bias_dph': 200.0, 'gyro_arw_dpsh': 1.0, 'accel_bias_ug': 2000.0,
        'accel_vrw_ug_rthz': 200.0, 'coarse_duration': 10.0, 'gnss_pos_sigma_m': 0.5,
        'gnss_vel_sigma_mps': 0.05}
 #: the MEMS car cases ended in fine while the gyro scale-factor model took twice the told
-#: sigma for the heading too (align/rotation_error.py): it held the heading sigma at 2.8 deg
-#: after the turn at 100 s. At the told sigma (HEADING_COHERENCE_FACTOR 1) MVBAKF is
+#: sigma for the heading too (align/engines/rotation_error.py): it held the heading sigma at
+#: 2.8 deg after the turn at 100 s. At the told sigma (HEADING_COHERENCE_FACTOR 1) MVBAKF is
 #: aligned from 105 s, 1.4 deg off under a 1.9 deg sigma at the end (simulator truth); the
 #: UKF's heading sigma stays above the aligned bound in the bag's 120 s
 MEMS_CAR_PHASES = ('coarse', 'fine')

@@ -1,0 +1,3 @@
+"""The fine-alignment engines (stationary, aided, moving, robust, navigation), their factory and
+the models they share.
+"""

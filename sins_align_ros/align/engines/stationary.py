@@ -1,0 +1,401 @@
+"""Stationary fine alignment (seed 002): zero-velocity Kalman filter with restaging.
+
+The stationary mechanization with the model's equivalence operations (seed 002
+Table 1) runs at IMU rate; every ``period`` seconds the zero-velocity Kalman filter
+(:class:`~sins_align_ros.models.stationary.StationaryModel`: 12, 10 or 7 states) is
+updated and its misalignment and velocity estimates are fed back into the
+mechanization. When the heading uncertainty has converged the pipeline may
+re-initialise the filter (:meth:`StationaryEngine.restage`): seed 002's closing
+suggestion of staged re-initialisation, which removes the error that the first
+transient leaves in the bias estimates.
+
+We restage only where that error can matter (:func:`restage_helps`): the transient is
+the linear model's neglect of the second-order terms of a large initial misalignment
+(seed 002 sec. 4 starts from 10 deg). From a small one (a navigation-grade coarse
+alignment leaves 0.5 deg) a restage only throws away the bias/heading correlation the
+first stage learnt: the 10/12-state heading sigma went back from 3.4' to 29' at 270 s
+on a still navigation-grade IMU (error 0.1-2'), and ``aligned`` came at 480 s instead
+of 300 s.
+
+Each zero-velocity epoch is gated: one whose innovation is beyond any still base's
+(:data:`~.still_watch.P_FALSE`) is refused, so an acceleration is not turned into tilt;
+the fine stage decides from the refusals and the innovations whether the base moves
+(:mod:`.still_watch`) and may then make the engine coast (:meth:`StationaryEngine.start_coast`:
+free gyro integration with a growing covariance, the last seconds' feedbacks undone) until
+the base has shown rest again (:meth:`StationaryEngine.resume`).
+"""
+from collections import deque
+
+import numpy as np
+
+from ...filters import kf
+from ...filters.chi2 import chi2_quantile
+from .gnss_gate import GnssGate
+from ..inputs.heading import LINEAR_MAX, take_heading
+from .heading_update import gated_yaw_update
+from .still_watch import P_FALSE, ROLLBACK_S, Coast, cruise_floor
+from ...models.stationary import unobservable_variance
+from ...nav import earth
+from ...nav.frames import rotvec_to_dcm
+from ...nav.mechanization import StationaryStrapdown
+
+#: the filter period is reached when the accumulated time is within this of it, s
+_EPS_T = 1e-9
+#: the smallest initial velocity 1-sigma (m/s) of the still-base filters
+V0_SIGMA = 0.01
+#: the initial misalignment counted, in sigmas, when judging the first stage's nonlinearity
+_K_NONLINEAR = 3.0
+
+
+def restage_helps(sigma_phi, lat, noise):
+    """Whether re-initialising after the first stage can remove an error it leaves.
+
+    The first stage's linear model neglects terms of order ``phi^2 / 2`` of the initial
+    misalignment ``phi``; they go into the bias estimates. Counting ``phi`` at 3 sigma
+    (``sigma_phi`` (3,), rad), a restage helps when that term exceeds the heading's own
+    limit at rest, the 1-sigma the gyro bias leaves (``eps_E / (W cos L)``,
+    :func:`~sins_align_ros.models.stationary.unobservable_variance` at latitude ``lat``
+    for the :class:`NoiseSpec` ``noise``).
+    """
+    worst = _K_NONLINEAR * float(np.max(sigma_phi))
+    return 0.5 * worst ** 2 > float(np.sqrt(unobservable_variance(lat, noise)[2]))
+
+
+class StationaryEngine:
+    """Mechanization + seed 002 filter on a still base; see the module docstring.
+
+    Parameters
+    ----------
+    model : StationaryModel
+    noise : NoiseSpec
+    C_b_n : ndarray (3, 3)
+        Initial attitude, body FLU -> ENU.
+    sigma_phi : ndarray (3,)
+        Initial misalignment sigma, rad.
+    position : ndarray (3,)
+        Latitude, longitude (rad), height (m).
+    zero_velocity_sigma : float or sequence (3,)
+        Sigma of the zero-velocity measurement, m/s: one for every axis, or east, north,
+        up (the vertical one is used by models that measure it).
+    period : float
+        Filter period, s.
+    """
+
+    navigates = False
+    #: the pipeline may re-initialise this filter when it has converged
+    restages = True
+
+    def __init__(self, model, noise, C_b_n, sigma_phi, position, zero_velocity_sigma, period):
+        lat, lon, h = position
+        m = self.model = model
+        self.noise = noise
+        self.lat = lat
+        self.mech = StationaryStrapdown(C_b_n, lat, lon, h, coriolis=m.mech.coriolis,
+                                        hold_vertical=m.mech.hold_vertical)
+        self.g = earth.gravity(lat, h)
+        self.x = np.zeros(m.n)
+        zv = np.broadcast_to(np.asarray(zero_velocity_sigma, dtype=float), (3,))
+        #: the initial velocity's 1-sigma per measured axis (m/s): the base's own velocity
+        #: at rest, the zero-velocity sigma, never below :data:`V0_SIGMA` (a heaving ship is
+        #: anywhere in its heave's velocity when the stage starts; a 0.01 m/s claim there
+        #: held the offset for tens of seconds, NIS 9 per epoch on ship_sway's heave)
+        self.v0_sigma = np.maximum(V0_SIGMA, zv[m.meas])
+        self.P = m.P0(self.v0_sigma, sigma_phi, noise)
+        self.H = m.H()
+        self.R = np.diag(zv[m.meas] ** 2)
+        #: variances (3,) the model cannot see, added to the attitude covariance at output
+        self.floor = m.attitude_floor(lat, noise)
+        #: variances (3,) below which the 10/12-state misalignment is never reported
+        self.bound = np.zeros(3) if m.name == 'reduced7' else unobservable_variance(lat, noise)
+        self.period = float(period)
+        #: the fine stage may restage this filter (a large initial misalignment)
+        self.restage_helps = restage_helps(sigma_phi, lat, noise)
+        self.since_update = 0.0
+        #: the external heading's innovation gate (the factory sets the GNSS gate's figures)
+        self.heading_gate = GnssGate(0.9999, sizes=(1,), name='heading')
+        self.n_updates = 0
+        self.last_nis = float('nan')
+        self._disc_cache = {}
+        #: a zero-velocity epoch with an NIS above this is refused (:mod:`.still_watch`)
+        self.zv_gate = chi2_quantile(1.0 - P_FALSE, len(m.meas))
+        #: the last epoch was refused; refused epochs so far
+        self.last_gated = False
+        self.n_gated = 0
+        #: the covariance after each of the last epochs and the attitude correction it fed
+        #: back (a rollback when the base is found moving), the start first
+        self._recent = deque([(self.P, np.zeros(3), np.zeros(3))],
+                             maxlen=int(np.ceil(ROLLBACK_S / self.period)) + 1)
+        #: free gyro integration while the base moves (:class:`~.still_watch.Coast`), or None
+        self.coast = None
+        #: variances (3,) added to the misalignment's after the base moved and came to rest
+        #: (:meth:`resume`)
+        self.cruise_floor = None
+
+    # -- stepping --------------------------------------------------------------------------
+    def run_block(self, t, dtheta, dv, i, t_last):
+        """Mechanize samples ``i..`` up to the next filter epoch (which it runs).
+
+        Returns ``(j, C (j - i, 3, 3), epoch)``: the end index, the attitudes after each
+        sample (the last one corrected when the epoch ran) and whether it ran.
+        """
+        j, n = i, len(t)
+        acc = self.since_update
+        while j < n:
+            acc += t[j] - (t_last if j == i else t[j - 1])
+            j += 1
+            if acc >= self.period - _EPS_T:
+                break
+        dts = np.diff(np.concatenate([[t_last], t[i:j]]))
+        C = self.mech.run(dtheta[i:j], dv[i:j], dts)['C_b_n']
+        self.since_update = acc
+        epoch = acc >= self.period - _EPS_T
+        if epoch:
+            self._epoch(acc)
+            C[-1] = self.mech.C_b_n
+        return j, C, epoch
+
+    def step(self, dtheta, dv, dt):
+        """Mechanize one sample (scalar path); returns ``(C_b_n, epoch)``."""
+        C = self.mech.step(dtheta, dv, dt)
+        self.since_update += dt
+        if self.since_update >= self.period - _EPS_T:
+            self._epoch(self.since_update)
+            return self.mech.C_b_n, True
+        return C, False
+
+    def _epoch(self, dt):
+        """Predict over ``dt``, update with zero velocity, feed back (seed 002 eq. 3).
+
+        An epoch whose innovation is beyond :attr:`zv_gate` is refused (predicted only);
+        while coasting the covariance grows instead (:class:`~.still_watch.Coast`).
+        """
+        self.since_update = 0.0
+        if self.coast is not None:
+            self.coast.advance(dt, float(np.hypot(*self.mech.v_n[:2])))
+            return
+        m = self.model
+        Phi, Qd = self._discretize(dt)
+        x, P = kf.predict(self.x, self.P, Phi, Qd)
+        z = self.mech.v_n[m.meas]
+        y = z - self.H @ x
+        S = self.H @ P @ self.H.T + self.R
+        self.last_nis = kf.nis(y, S)
+        self.last_gated = self.last_nis > self.zv_gate
+        if self.last_gated:
+            self.x, self.P = x, P
+            self.n_gated += 1
+            self._recent.append((P, np.zeros(3), np.zeros(3)))
+            return
+        self.x, self.P, y, S = kf.update(x, P, z, self.H, self.R)
+        self.n_updates += 1
+        dvel = np.zeros(3)
+        dvel[m.meas] = self.x[m.i_v]
+        self._recent.append((self.P, self.x[m.i_phi].copy(), dvel))
+        self._feed_back()
+
+    def _feed_back(self):
+        """Feedback: ``C = exp([phi x]) C~`` (seed 002 eq. 3), velocity error removed."""
+        m = self.model
+        self.mech.C_b_n = rotvec_to_dcm(self.x[m.i_phi]) @ self.mech.C_b_n
+        dvel = np.zeros(3)
+        dvel[m.meas] = self.x[m.i_v]
+        self.mech.correct_velocity(dvel)
+        self.x[m.i_phi] = 0.0
+        self.x[m.i_v] = 0.0
+
+    def update_heading(self, fix, t_now, w_up=0.0):
+        """Take an external heading ``fix`` (:class:`~.heading.HeadingFix`) at ``t_now``.
+
+        A filter epoch (zero velocity) over the time since the last one first, then the yaw
+        update (:func:`~.heading.yaw_update`; directly above :data:`~.heading.LINEAR_MAX`)
+        and the feedback. Measured, the heading no longer rests on the gyro bias: the 10/12
+        models, whose bias states the measured heading separates, drop their heading
+        :attr:`bound`. (``reduced7`` has no bias states: the gyrocompass keeps pulling it
+        towards ``eps_E / (W cos L)``, and its output floor stays; docs/filters.md.)
+        Returns ``'used'``, ``'taken'`` or ``'rejected'``.
+        """
+        if self.since_update > 1e-6:
+            self._epoch(self.since_update)
+        m = self.model
+        yaw = fix.yaw + w_up * (t_now - fix.t)
+        if self.coast is not None:
+            return self._coast_heading(fix, yaw)
+        k_up = np.arange(m.n)[m.i_phi][2]
+        if self.P[k_up, k_up] > LINEAR_MAX ** 2:
+            self.mech.C_b_n, self.P = take_heading(self.mech.C_b_n, self.P, k_up, yaw, fix.var)
+            self.x[k_up] = 0.0
+            result = 'taken'
+        else:
+            upd = gated_yaw_update(self.heading_gate, self, self.x, self.P, m.i_phi,
+                                   self.mech.C_b_n, fix, yaw)
+            if upd is None:
+                return 'rejected'
+            self.x, self.P = upd
+            self._feed_back()
+            result = 'used'
+        self.heading_measured()
+        return result
+
+    def _coast_heading(self, fix, yaw):
+        """Apply :meth:`update_heading`'s yaw update to the coasting covariance."""
+        c = self.coast
+        if c.P[2, 2] > LINEAR_MAX ** 2:
+            self.mech.C_b_n, c.P = take_heading(self.mech.C_b_n, c.P, 2, yaw, fix.var)
+            return 'taken'
+        upd = gated_yaw_update(self.heading_gate, c, np.zeros(3), c.P, np.arange(3),
+                               self.mech.C_b_n, fix, yaw)
+        if upd is None:
+            return 'rejected'
+        x, c.P = upd
+        self.mech.C_b_n = rotvec_to_dcm(x) @ self.mech.C_b_n
+        return 'used'
+
+    # -- a base that moves -------------------------------------------------------------------
+    def start_coast(self, seconds_back, gyro_bias, heading_sigma):
+        """Stop the zero-velocity filter: free gyro integration from ``seconds_back`` ago.
+
+        The feedbacks of the epochs of the last ``seconds_back`` seconds (at most
+        :data:`~.still_watch.ROLLBACK_S`) are undone on the attitude (the feedback is a
+        rotation on the navigation side; the Earth rate turned the attitude by less than
+        1e-3 rad in between, so the order of the two is immaterial), and the covariance
+        restarts from the attitude covariance before them, grown over the time since
+        (:class:`~.still_watch.Coast`; ``gyro_bias`` rad/s, ``heading_sigma`` rad). The
+        velocity corrections of those epochs are undone as well, so that the integrated
+        velocity counts the motion from its start. Returns the seconds actually undone.
+        """
+        n = min(len(self._recent) - 1, int(round(seconds_back / self.period)))
+        recent = list(self._recent)
+        C, dvel = self.mech.C_b_n, np.zeros(3)
+        for _, phi, dv in reversed(recent[len(recent) - n:]):
+            C = rotvec_to_dcm(-phi) @ C
+            dvel -= dv
+        self.mech.C_b_n = C
+        self.mech.correct_velocity(dvel)
+        P_before = recent[len(recent) - 1 - n][0]
+        self.coast = Coast(self._attitude_cov(P_before), n * self.period, self.lat,
+                           heading_sigma, gyro_bias, self.noise)
+        self.last_gated = False
+        return n * self.period
+
+    def cruise_speed_bound(self):
+        """Return the speed (m/s) the base may still have after coasting, or None if moving.
+
+        None when the velocity integrated while coasting is not back to zero within
+        3 :attr:`~.still_watch.Coast.v_sigma` (a base cruising at a constant velocity);
+        else that velocity plus 3 sigma: what a base that shows rest may still cruise at.
+        """
+        c = self.coast
+        speed = float(np.hypot(*self.mech.v_n[:2]))
+        return None if speed > 3.0 * c.v_sigma else speed + 3.0 * c.v_sigma
+
+    def resume(self, speed_bound):
+        """Zero-velocity filtering again from the coasting attitude (the base shows rest).
+
+        The velocity restarts at zero; the filter from its prior with the coasting
+        misalignment covariance (its correlation with the biases is gone). The base may
+        cruise at up to ``speed_bound`` m/s unseen (:meth:`cruise_speed_bound`): its
+        Coriolis acceleration would tilt the zero-velocity solution and its transport rate
+        turn the gyrocompass heading, so both are added to the attitude variances from now
+        on (:func:`~.still_watch.cruise_floor`).
+        """
+        m = self.model
+        P_phi = self.coast.P
+        self.coast = None
+        self.cruise_floor = cruise_floor(speed_bound, self.lat, self.g)
+        self.mech.correct_velocity(self.mech.v_n)
+        P = m.P0(self.v0_sigma, np.sqrt(np.diag(P_phi)), self.noise)
+        P[np.ix_(m.i_phi, m.i_phi)] = P_phi
+        self.x = np.zeros(m.n)
+        self.P = P
+        self._recent.clear()
+        self._recent.append((P, np.zeros(3), np.zeros(3)))
+
+    def heading_measured(self):
+        """Drop the heading's :attr:`bound`: an external heading, not the gyro bias, sets it."""
+        self.bound = np.array([self.bound[0], self.bound[1], 0.0])
+
+    def _discretize(self, dt):
+        m = self.model
+        key = round(dt, 9)
+        if m.name == 'reduced7' and key in self._disc_cache:
+            return self._disc_cache[key]
+        F = m.F(self.mech.C_b_n, self.lat, self.g)
+        G, Qc = m.G_Qc(self.mech.C_b_n, self.noise)
+        res = kf.discretize(F, G, Qc, dt)
+        if m.name == 'reduced7':
+            self._disc_cache[key] = res
+        return res
+
+    def restage(self):
+        """Seed 002 sec. 4: re-initialise the filter from the corrected attitude.
+
+        The bias states, which absorbed the transient of the first stage (the
+        nonlinear effect of a large initial misalignment), restart from their
+        prior, uncorrelated with the misalignment.
+
+        * reduced7: the misalignment keeps its current variance. Its unobservable
+          part is not in P but added at the output (attitude floor), so nothing
+          is counted twice; keeping the variance keeps the averaging already done
+          on the heading (a widened restart let it wander outside the limit band).
+        * stationary10/12: their P holds the bias/misalignment ambiguity itself;
+          a fresh bias prior next to the old misalignment variance would count
+          that information twice (Monte Carlo: 92% inside 3 sigma, NEES 6.9), so
+          the misalignment restarts from three times its current sigma.
+        """
+        m = self.model
+        ip = m.i_phi
+        widen = 1.0 if m.name == 'reduced7' else 3.0
+        P_phi = np.diag(np.diag(self.P)[ip]) * widen ** 2
+        self.x, P = m.reset_biases(self.x, self.P, self.noise)
+        other = np.setdiff1d(np.arange(m.n), ip)
+        P[np.ix_(ip, ip)] = P_phi
+        P[np.ix_(ip, other)] = 0.0
+        P[np.ix_(other, ip)] = 0.0
+        self.P = P
+
+    # -- output ------------------------------------------------------------------------------
+    def attitude_cov(self):
+        """Misalignment covariance about ENU (3, 3) the filter holds (without the floor).
+
+        For the 10/12-state models each variance is raised to at least what the
+        biases they cannot separate from it at rest leave (seed 002 eq. 15: tilt
+        ``a/g``, heading ``eps_E/(W cos L)``, :attr:`bound`). Their own covariance should
+        hold that, but its linear model, restaged and with a MEMS heading that is
+        anything but small, was measured to shrink the tilt sigma to a third of the
+        bound (static MEMS IMU, stationary12: 0.06 deg against an accelerometer bias
+        of 0.27 deg, 7 % of the samples beyond 3 sigma). Raising diagonal entries keeps
+        the matrix positive semi-definite.
+        """
+        if self.coast is not None:
+            return self.coast.P
+        P = self._attitude_cov(self.P)
+        if self.cruise_floor is not None:
+            P = P + np.diag(self.cruise_floor)
+        return P
+
+    def _attitude_cov(self, P_full):
+        ip = self.model.i_phi
+        P = P_full[np.ix_(ip, ip)]
+        d = np.diag(P)
+        if np.any(d < self.bound):
+            P = P + np.diag(np.maximum(self.bound - d, 0.0))
+        return P
+
+    def widen(self, var_phi, var_v):
+        """Add ``var_phi`` (rad^2) to each misalignment and ``var_v`` to each velocity variance."""
+        if self.coast is not None:
+            self.coast.P[np.diag_indices(3)] += var_phi
+            return
+        m = self.model
+        P = self.P.copy()
+        P[m.i_phi, m.i_phi] += var_phi
+        P[m.i_v, m.i_v] += var_v
+        self.P = P
+
+    def status(self):
+        """Filter internals for diagnostics."""
+        s = {'filter_updates': self.n_updates, 'innovation_nis': self.last_nis,
+             'zero_velocity_refused': self.n_gated, 'coasting': self.coast is not None}
+        if self.heading_gate.n_rejected or self.bound[2] == 0.0:
+            s.update(self.heading_gate.status())
+        return s

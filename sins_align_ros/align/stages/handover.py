@@ -1,0 +1,140 @@
+"""The hand-over from coarse to fine alignment: from a full coarse window to a fine stage.
+
+One job: when the coarse window is full, decide from the data and the configuration
+what runs next, without changing the pipeline:
+
+1. the fine filter (``auto`` resolved by :mod:`.motion` from what GNSS shows), or why
+   none can start (a moving base without GNSS, ...);
+2. the position (:class:`~.gnss_buffer.GnssBuffer`, a fix may have come in meanwhile);
+3. the sensor self-check (:mod:`.self_check`): it may widen the configured model, and
+   says whether the gyros can find north;
+4. the coarse attitude (:mod:`.coarse_stage`), its heading replaced by a recent external
+   one (:mod:`.heading`);
+5. the engine and the fine stage (:mod:`.factory`, :mod:`.fine_stage`).
+
+:class:`~.pipeline.AlignmentPipeline` applies the :class:`FineStart` it returns, or
+restarts from coarse with the reason.
+"""
+from dataclasses import dataclass
+
+from ...models.stationary import unobservable_variance
+from . import coarse_stage, self_check
+from ..inputs import motion
+from ..engines.factory import is_aided, make_engine, noise_spec
+from .fine_stage import FineStage
+from ..inputs.heading import coarse_heading
+
+
+@dataclass
+class FineStart:
+    """What the hand-over decided (every field replaces the pipeline's of that name).
+
+    ``cfg``: the parameters as the hand-over left them (``fine_filter`` resolved, the
+    sensor model widened by the self-check); ``noise`` their sensor model in SI units;
+    ``aided``: the fine filter is GNSS-aided; ``position`` ``(lat, lon, h)`` and its
+    ``position_source``; ``check``: the self-check's result or None; ``coarse_info``:
+    the coarse stage's diagnostics; ``heading_measured``: an external heading set the
+    coarse heading; ``warnings``: what the user should be told; ``fine``: the running
+    :class:`~.fine_stage.FineStage`; ``install``: the
+    :class:`~.installation.Installation`, its lever arm the self-check's where it found one.
+    """
+
+    cfg: dict
+    noise: object
+    aided: bool
+    position: tuple
+    position_source: str
+    check: object
+    coarse_info: dict
+    heading_measured: bool
+    warnings: list
+    fine: FineStage
+    install: object
+
+
+def hand_over(window, cfg, noise, clock, gnss, headings, install):
+    """Return ``(FineStart, None)``, or ``(None, reason)`` when fine alignment cannot start.
+
+    ``window``: the coarse window's arrays (``CoarseWindow.arrays``); ``cfg`` and
+    ``noise``: the parameters and sensor model as configured (not changed here);
+    ``clock``: the pipeline's :class:`~.fine_stage.Clock` (at the window's end);
+    ``gnss``, ``headings``, ``install``: the pipeline's GNSS history, external headings
+    and installation (read only).
+    """
+    cfg = dict(cfg)
+    m = motion.judge(gnss, cfg, window, install)
+    cfg['fine_filter'] = motion.choose_filter(cfg, m.moving)
+    aided = is_aided(cfg['fine_filter'])
+    reason = motion.cannot_start(cfg['fine_filter'], aided, m)
+    if reason is not None:
+        return None, reason
+    position, position_source = gnss.position(cfg, aided)
+    warnings, check = [], None
+    if cfg['sensor_self_check']:
+        # biases only where the base is known to be at rest: GNSS says so, or (a
+        # stationary filter, chosen by the user or by auto) there is no GNSS
+        at_rest = not m.moving and (m.speed is not None or not aided)
+        check = self_check.check(window, position, cfg, at_rest, gnss)
+        if check is not None and check.latitude is not None:
+            position_source = 'gyro_latitude'      # the self-check's estimate (in place)
+        if check.widened:
+            cfg.update(check.widened)
+            noise = noise_spec(cfg)
+        if 'gnss_lever_arm_m' in check.widened:
+            install = install.with_lever_arm(cfg['gnss_lever_arm_m'])
+        warnings.extend(check.findings)
+        warning = self_check.heading_warning(check, at_rest, aided)
+        if warning and not headings.latest(clock.t_last):
+            warnings.append(warning)
+    res, coarse_info, reason = coarse_stage.run(window, cfg, noise, position, gnss,
+                                                clock.t_last, aided, install)
+    if reason is not None:
+        return None, reason
+    heading_measured = _take_heading(res, window, headings, clock.t_last, coarse_info)
+    no_heading = check is not None and not check.heading_observable and not heading_measured
+    # the self-check's finding replaces the coarse stage's own warning about the gyro
+    warnings.extend(w for w in res.warnings if not (no_heading and w.startswith('gyro bias')))
+    heading_known = (check is None or check.heading_observable
+                     or (aided and not check.at_rest) or heading_measured)
+    fine, engine_warnings = fine_stage_for(res, cfg, noise, bool(gnss.vels), heading_known,
+                                           heading_measured, clock, install, headings)
+    warnings.extend(engine_warnings)
+    if check is not None:
+        fine.mounting_doubt = check.mounting_doubt
+    return FineStart(cfg, noise, aided, position, position_source, check, coarse_info,
+                     heading_measured, warnings, fine, install), None
+
+
+def fine_stage_for(start, cfg, noise, with_velocity, heading_known, heading_measured, clock,
+                   install, headings):
+    """Return ``(FineStage, warnings)``: ``cfg['fine_filter']``'s engine started from ``start``.
+
+    ``start``: a :class:`~.coarse_stage.CoarseResult`; ``with_velocity``: GNSS velocity
+    has been seen; ``heading_known``: the heading is observable (else published as
+    unknown); ``heading_measured``: an external heading set the coarse heading. The
+    pipeline's hand-over, :meth:`~.pipeline.AlignmentPipeline.start_fine` and the
+    forecast (:mod:`.expectation`) all start fine stages here.
+    """
+    engine, floor, warnings = make_engine(cfg, noise, start, with_velocity, heading_known)
+    if heading_measured and hasattr(engine, 'heading_measured'):
+        engine.heading_measured()
+    fine = FineStage(engine, floor, clock, cfg, heading_known,
+                     unobservable_variance(start.position[0], noise)[0], install, noise,
+                     headings)
+    return fine, warnings
+
+
+def _take_heading(res, window, headings, t_end, coarse_info):
+    """Give the coarse result ``res`` the last external heading if one is recent.
+
+    Its yaw is carried to the window's end with the gyros' up rate (a turning car).
+    Returns True if it did (``coarse_info['coarse_heading_source']`` says so).
+    """
+    fix = headings.latest(t_end)
+    if fix is None:
+        return False
+    tt, dth = window[0], window[1]
+    turned = float(res.C_b_n[2] @ dth[tt > fix.t].sum(axis=0))
+    res.C_b_n, res.sigma = coarse_heading(res.C_b_n, res.sigma, fix.yaw + turned, fix.var)
+    coarse_info['coarse_heading_source'] = 'external'
+    return True
