@@ -14,7 +14,7 @@ class InstallWithKernels(install):
     """``install``, then the kernels compiled ahead of time into the installed package.
 
     ``python -m sins_align_ros.cli.build_kernels`` (numba.pycc and a C compiler) writes
-    ``nav/_aot_kernels`` beside the installed sources, so that no process of the package
+    ``_aot_kernels`` beside the installed sources, so that no process of the package
     imports numba (about 0.7 s of every start). Where it cannot be built the install
     goes on and the kernels are compiled just in time by numba, as before.
     """

@@ -28,7 +28,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from sins_align_ros.eval.markdown import machine_summary  # noqa: E402
-from sins_align_ros.nav import kernels  # noqa: E402
+from sins_align_ros import compiled  # noqa: E402
 from sins_align_ros.nav.frames import euler_to_dcm  # noqa: E402
 from sins_align_ros.nav.mechanization import Strapdown  # noqa: E402
 from sins_align_ros.sim.imu import ImuSimulator, ImuSpec  # noqa: E402
@@ -104,7 +104,7 @@ print(time.perf_counter() - t0)
 def start_up(cache_dir, aot=False):
     """Seconds from a new interpreter to the first ``Strapdown.run`` result.
 
-    Imports included. ``aot``: the ahead-of-time kernel module (``nav/_aot_kernels``);
+    Imports included. ``aot``: the ahead-of-time kernel module (``_aot_kernels``);
     else numba's just-in-time path (``SINS_ALIGN_NO_AOT=1``) with ``NUMBA_CACHE_DIR`` at
     ``cache_dir`` (empty: it compiles and writes the cache; filled: it loads).
     """
@@ -132,7 +132,7 @@ def main(argv=None):
         cold = start_up(cache)
         warm_start = statistics.median(start_up(cache) for _ in range(3))
         aot_start = statistics.median(start_up(cache, aot=True) for _ in range(3)) \
-            if kernels.AOT is not None else None
+            if compiled.AOT is not None else None
     case = samples()
     funcs = integrators(case)
     warm = {}
@@ -151,8 +151,8 @@ def main(argv=None):
     n = len(case[5])
     lines = ['# Mechanization speed (issue 22, must-show 2)', '',
              f'Command: `python bench/mechanization_speed.py --repeats {args.repeats}` on '
-             f'{machine_summary()}; kernels compiled: {kernels.COMPILED}, ahead of time: '
-             f'{kernels.AOT is not None}.', '',
+             f'{machine_summary()}; kernels compiled: {compiled.COMPILED}, ahead of time: '
+             f'{compiled.AOT is not None}.', '',
              f'{n} samples ({SECONDS:.0f} s at {RATE_HZ:.0f} Hz, ship_underway), each '
              'integrator timed alternately in one process, median of '
              f'{args.repeats} runs after a warm-up call (first call, compile or cache load, '
@@ -170,7 +170,7 @@ def main(argv=None):
               '`step` path.', '',
               'Start-up, a new Python process to the first `Strapdown.run` result (imports '
               'included; median of 3): '
-              + (f'{aot_start:.2f} s with the ahead-of-time kernels (`nav/_aot_kernels`, '
+              + (f'{aot_start:.2f} s with the ahead-of-time kernels (`_aot_kernels`, '
                  'numba not imported); ' if aot_start is not None else '')
               + f'just in time (`SINS_ALIGN_NO_AOT=1`) {cold:.2f} s with an empty numba '
               f'cache (it compiles and writes the cache), {warm_start:.2f} s with the cache '

@@ -16,7 +16,7 @@ Three processes on one machine, local discovery only, their own ``ROS_DOMAIN_ID`
 The node's CPU share is its user + system time (``/proc/PID/stat``) over the fine
 phase's last ``--window`` seconds divided by that wall time. Cold start: from launching
 the node to its first ``imu/data`` message (the IMU already flowing; the coarse phase
-publishes from the first sample), with the ahead-of-time kernels (``nav/_aot_kernels``,
+publishes from the first sample), with the ahead-of-time kernels (``_aot_kernels``,
 built by setup) or, for a filter given as ``NAME/jit``, numba's just-in-time path
 (``SINS_ALIGN_NO_AOT=1``): its first run with an empty numba cache, later ones with the
 cache it filled.

@@ -42,14 +42,14 @@ if [ ! -f "$stamp" ] || [ -n "$(find setup.py setup.cfg package.xml resource sin
       --event-handlers console_cohesion- summary- >"$root/log/colcon-build.txt" 2>&1 \
       || { cat "$root/log/colcon-build.txt" >&2; exit 1; }
   )
-  # the kernels compiled ahead of time (numba.pycc, a C compiler: nav/_aot_kernels): setup.py's
+  # the kernels compiled ahead of time (numba.pycc, a C compiler: _aot_kernels): setup.py's
   # install step builds them into the installed package; the source tree the tests import
   # gets the same module (same sources, same hash). If they could not be built, the
   # kernels stay just-in-time compiled (said in the build log).
-  aot="$root/install/sins_align_ros/lib/python3.11/site-packages/sins_align_ros/nav"
-  rm -f "$root"/sins_align_ros/nav/_aot_kernels*
+  aot="$root/install/sins_align_ros/lib/python3.11/site-packages/sins_align_ros"
+  rm -f "$root"/sins_align_ros/_aot_kernels* "$root"/sins_align_ros/nav/_aot_kernels*
   if ls "$aot"/_aot_kernels*.so >/dev/null 2>&1; then
-    cp "$aot"/_aot_kernels* "$root/sins_align_ros/nav/"
+    cp "$aot"/_aot_kernels* "$root/sins_align_ros/"
   else
     echo "setup: kernels not compiled ahead of time (see log/colcon-build.txt)" >&2
   fi

@@ -13,7 +13,7 @@ from sins_align_ros.filters.cubature import (batched, chol_lower, ckf_predict, c
                                              cubature_points, srckf_predict, srckf_update, tria,
                                              tria_lapack)
 from sins_align_ros.filters.ukf import ukf_predict, ukf_update
-from sins_align_ros.nav import kernels
+from sins_align_ros import compiled as compilation
 from tolerance import assert_roundoff, roundoff
 
 DT = 0.1
@@ -76,7 +76,7 @@ def test_tria_compiled_householder_equals_lapack_qr(n, k):
     assert_roundoff(S, ref, 2 * k * k, np.abs(ref).max())
 
 
-@pytest.mark.skipif(not kernels.COMPILED, reason='numba not installed or switched off')
+@pytest.mark.skipif(not compilation.COMPILED, reason='numba not installed or switched off')
 @pytest.mark.parametrize('fading', [False, True])
 def test_compiled_square_root_ckf_equals_its_numpy_reference(fading, monkeypatch):
     """The compiled SRCKF moments (issue 22) against the numpy lines they replace.
@@ -97,7 +97,7 @@ def test_compiled_square_root_ckf_equals_its_numpy_reference(fading, monkeypatch
     SQ, SR = np.diag(0.1 * scale), np.diag(rng.uniform(0.1, 1.0, m))
     z, fade = rng.normal(size=m), (rng.uniform(1.0, 2.0, n) if fading else None)
     fast = srckf_predict(x, S, f, SQ, fade), srckf_update(x, S, z, h, SR)
-    monkeypatch.setattr(kernels, 'COMPILED', False)
+    monkeypatch.setattr(compilation, 'COMPILED', False)
     ref = srckf_predict(x, S, f, SQ, fade), srckf_update(x, S, z, h, SR)
     pairs = [*zip(ref[0], fast[0]), *zip(ref[1][:2], fast[1][:2])]
     pairs += [(getattr(ref[1][2], k), getattr(fast[1][2], k))
@@ -112,11 +112,11 @@ def test_compiled_square_root_ckf_equals_its_numpy_reference(fading, monkeypatch
         # Householder reflections over 2n + n columns (2 x 39^2 / 13 per state ~ 240):
         # ~300 operations, relative to the largest entry, solved through Pzz
         assert_roundoff(b, a, 300, np.abs(a).max(), cond)
-    monkeypatch.setattr(kernels, 'COMPILED', True)
+    monkeypatch.setattr(compilation, 'COMPILED', True)
     with pytest.raises(np.linalg.LinAlgError):
         srckf_update(x, S, z, batched(lambda X: np.zeros((m, X.shape[1]))), np.zeros((m, m)))
     for compiled in (True, False):        # shapes that disagree: ValueError on both paths
-        monkeypatch.setattr(kernels, 'COMPILED', compiled)
+        monkeypatch.setattr(compilation, 'COMPILED', compiled)
         with pytest.raises(ValueError):
             srckf_update(x, S, z[:-1], h, SR)
         with pytest.raises(ValueError):

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from sins_align_ros.nav import frames as fr
-from sins_align_ros.nav import kernels
+from sins_align_ros import compiled as compilation
 from sins_align_ros.units import DEG
 from tolerance import assert_roundoff, roundoff
 
@@ -183,9 +183,9 @@ def test_euler_sigma_is_the_propagated_covariance_of_a_small_nav_frame_rotation(
 @pytest.mark.parametrize('compiled', [False, True])
 def test_orthonormalize_is_the_svd_polar_factor_to_round_off(departure, compiled, monkeypatch):
     """Both functions, compiled (Newton-Schulz) or not, against the SVD's ``U V^T``."""
-    if compiled and not kernels.COMPILED:
+    if compiled and not compilation.COMPILED:
         pytest.skip('numba not installed or switched off')
-    monkeypatch.setattr(kernels, 'COMPILED', compiled)
+    monkeypatch.setattr(compilation, 'COMPILED', compiled)
     rng = np.random.default_rng(7)
     for k in range(50):
         C = fr.rotvec_to_dcm(rng.normal(0.0, 1.0, 3)) + rng.normal(0.0, departure, (3, 3))

@@ -1,9 +1,9 @@
 """The compiled kernels against the pure-Python reference path, on every fine filter.
 
-``SINS_ALIGN_NO_JIT=1`` makes :mod:`sins_align_ros.nav.kernels` plain Python (the
+``SINS_ALIGN_NO_JIT=1`` makes :mod:`sins_align_ros.compiled`'s kernels plain Python (the
 reference, also what runs without numba); a child process runs every fine filter that
 way and the results must equal the compiled ones to round-off: those of the
-ahead-of-time module (``nav/_aot_kernels``, built by setup) and of numba's just-in-time
+ahead-of-time module (``_aot_kernels``, built by setup) and of numba's just-in-time
 path (``SINS_ALIGN_NO_AOT=1``).
 """
 import json
@@ -17,7 +17,7 @@ import pytest
 
 from conftest import ROOT
 from sins_align_ros.eval.scenarios import FILTER_SCENARIOS, named
-from sins_align_ros.nav import kernels
+from sins_align_ros import compiled
 from tolerance import roundoff
 
 #: filter -> scenario, run for 150 s: coarse, then fine
@@ -29,9 +29,10 @@ sys.path.insert(0, {root!r})
 import numpy as np
 from sins_align_ros.eval.run import run_pipeline
 from sins_align_ros.eval.scenarios import named, simulate
+from sins_align_ros import compiled
 from sins_align_ros.nav import kernels
 from sins_align_ros.sim.presets import alignment_params
-res = {{'compiled': kernels.COMPILED, 'aot': kernels.AOT is not None}}
+res = {{'compiled': compiled.COMPILED, 'aot': compiled.AOT is not None}}
 for f, name in {cases!r}.items():
     sc = named(name, 150.0)
     out = run_pipeline(alignment_params(sc, f), simulate(sc, 4), block=700).out
@@ -60,13 +61,13 @@ def reference():
     return _run(True)
 
 
-@pytest.mark.skipif(not kernels.COMPILED, reason='numba not installed or switched off')
+@pytest.mark.skipif(not compiled.COMPILED, reason='numba not installed or switched off')
 @pytest.mark.parametrize('no_aot', [False, True], ids=['ahead-of-time', 'just-in-time'])
 def test_every_fine_filter_gives_the_same_result_compiled_and_in_pure_python(no_aot,
                                                                              reference):
     ref, fast = dict(reference), _run(False, no_aot)
     assert ref.pop('compiled') is False and fast.pop('compiled') is True
-    assert ref.pop('aot') is False and fast.pop('aot') is (kernels.AOT is not None and not no_aot)
+    assert ref.pop('aot') is False and fast.pop('aot') is (compiled.AOT is not None and not no_aot)
     for f in CASES:
         (q0, P0, ph0), (q1, P1, ph1) = ref[f], fast[f]
         assert ph0 == ph1 and ph0 != 'coarse', f
@@ -84,10 +85,11 @@ WARM = """
 import sys
 sys.path.insert(0, {root!r})
 from sins_align_ros.align import pipeline  # what the node has imported when it warms up
+from sins_align_ros import compiled
 from sins_align_ros.nav import kernels
 kernels.warm_up()
 def count():
-    return {{d.py_func.__qualname__: len(d.signatures) for d in kernels.DISPATCHERS}}
+    return {{d.py_func.__qualname__: len(d.signatures) for d in compiled.DISPATCHERS}}
 before = count()
 from sins_align_ros.eval.run import run_pipeline
 from sins_align_ros.eval.scenarios import named, simulate
@@ -101,7 +103,7 @@ print(before == count(), before, count())
 """
 
 
-@pytest.mark.skipif(not kernels.COMPILED, reason='numba not installed or switched off')
+@pytest.mark.skipif(not compiled.COMPILED, reason='numba not installed or switched off')
 def test_warm_up_compiles_every_signature_the_pipeline_uses():
     """A live node warms up before it subscribes; a signature left out compiles mid-data.
 
@@ -120,13 +122,14 @@ IMPORTS = """
 import sys
 sys.path.insert(0, {root!r})
 from sins_align_ros.cli import replay  # noqa: F401  (the replay's and the pipeline's imports)
+from sins_align_ros import compiled
 from sins_align_ros.nav import kernels
 import numpy as np
 from sins_align_ros.nav.mechanization import Strapdown
 kernels.warm_up()
 z = np.zeros((2500, 3))                 # past the re-orthonormalisation every 1000 samples
 Strapdown(np.eye(3), np.zeros(3), 0.8, 0.0, 0.0).run(z, z, 0.01)
-print(kernels.AOT is not None, 'numba' in sys.modules, 'scipy.linalg' in sys.modules)
+print(compiled.AOT is not None, 'numba' in sys.modules, 'scipy.linalg' in sys.modules)
 """
 
 
@@ -137,8 +140,8 @@ def test_setup_built_the_ahead_of_time_kernels_and_a_replay_imports_neither_numb
     LAPACK inside a compiled kernel (an SVD) imports scipy.linalg at its first call,
     0.15 s: hence the 2500 samples.
     """
-    assert kernels.AOT is not None, 'scripts/setup.sh did not build nav/_aot_kernels'
-    assert {name for name, _, _ in kernels.EXPORTS} <= set(dir(kernels.AOT))
+    assert compiled.AOT is not None, 'scripts/setup.sh did not build _aot_kernels'
+    assert {name for name, _, _ in compiled.EXPORTS} <= set(dir(compiled.AOT))
     out = subprocess.run([sys.executable, '-c', IMPORTS.format(root=str(ROOT))], check=True,
                          capture_output=True, text=True,
                          env=dict(os.environ, OPENBLAS_NUM_THREADS='1')).stdout
@@ -148,7 +151,7 @@ def test_setup_built_the_ahead_of_time_kernels_and_a_replay_imports_neither_numb
 def test_a_stale_ahead_of_time_module_is_not_used(monkeypatch):
     """Built from other sources (an edit since setup): the just-in-time path instead."""
     with monkeypatch.context() as m:
-        m.setattr(kernels, 'source_hash', lambda: '0' * 40)
-        assert kernels._load_aot() is None
+        m.setattr(compiled, 'source_hash', lambda: '0' * 40)
+        assert compiled._load_aot() is None
     monkeypatch.setenv('SINS_ALIGN_NO_AOT', '1')
-    assert kernels._load_aot() is None
+    assert compiled._load_aot() is None

@@ -1,11 +1,11 @@
-"""Build the ahead-of-time kernel module (``nav/_aot_kernels``) with ``numba.pycc``.
+"""Build the ahead-of-time kernel module (``_aot_kernels``) with ``numba.pycc``.
 
     python -m sins_align_ros.cli.build_kernels [PACKAGE_DIR ...]
 
 compiles every kernel declared with a signature
-(:data:`~sins_align_ros.nav.kernels.EXPORTS`) into one extension module in
-``PACKAGE_DIR/nav`` (default: this package's own) and writes ``_aot_kernels.sha1``, the
-hash of the sources it was built from, which :mod:`~sins_align_ros.nav.kernels` checks
+(:data:`~sins_align_ros.compiled.EXPORTS`) into one extension module in
+``PACKAGE_DIR`` (default: this package) and writes ``_aot_kernels.sha1``, the
+hash of the sources it was built from, which :mod:`~sins_align_ros.compiled` checks
 before it uses the module. Needs numba and a C compiler at build time only; the module
 itself needs numpy alone. ``scripts/setup.sh`` runs it for the source tree and the colcon
 install; where it cannot run, the kernels stay just-in-time compiled (the same numbers, a
@@ -29,23 +29,24 @@ def _compile(workdir):
     import warnings
     from numba.pycc import CC
 
+    from .. import compiled
     from ..filters import cubature  # noqa: F401 (their kernels join EXPORTS on import)
     from ..io import fixed_text  # noqa: F401
     from ..models import large_azimuth, loosely_coupled  # noqa: F401
-    from ..nav import kernels
-    assert kernels.BUILDING_AOT and kernels.AOT is None
-    cc = CC(kernels.AOT_MODULE)
+    from ..nav import kernels  # noqa: F401
+    assert compiled.BUILDING_AOT and compiled.AOT is None
+    cc = CC(compiled.AOT_MODULE)
     cc.output_dir = str(workdir)
     cc.verbose = False
-    for name, func, sig in kernels.EXPORTS:
+    for name, func, sig in compiled.EXPORTS:
         cc.export(name, sig)(func)
     with warnings.catch_warnings():
         warnings.simplefilter('ignore')
         cc.compile()
-    built = [p for p in Path(workdir).iterdir() if p.name.startswith(kernels.AOT_MODULE)]
+    built = [p for p in Path(workdir).iterdir() if p.name.startswith(compiled.AOT_MODULE)]
     if len(built) != 1:
         raise RuntimeError(f'numba.pycc produced {[p.name for p in built]}')
-    return built[0], kernels.source_hash()
+    return built[0], compiled.source_hash()
 
 
 def main(argv=None):
@@ -56,11 +57,10 @@ def main(argv=None):
         with tempfile.TemporaryDirectory() as tmp:
             module, digest = _compile(tmp)
             for package in targets:
-                nav = package / 'nav'
-                for old in nav.glob('_aot_kernels*'):
+                for old in package.glob('_aot_kernels*'):
                     old.unlink()
-                shutil.copy2(module, nav / module.name)
-                (nav / '_aot_kernels.sha1').write_text(digest + '\n')
+                shutil.copy2(module, package / module.name)
+                (package / '_aot_kernels.sha1').write_text(digest + '\n')
     except Exception as exc:          # no numba.pycc, no compiler, ...: stay just in time
         print(f'sins_align_ros.cli.build_kernels: kernels not compiled ahead of time '
               f'({type(exc).__name__}: {exc}); numba will compile them at first use',

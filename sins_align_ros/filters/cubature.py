@@ -13,7 +13,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..nav import kernels
+from .. import compiled
 from .kf import nis
 
 
@@ -36,14 +36,14 @@ def tria(A):
     with a non-negative diagonal, equal to round-off (test_filters).
     """
     A = np.asarray(A, dtype=float)
-    if kernels.COMPILED and A.shape[1] >= A.shape[0]:
+    if compiled.COMPILED and A.shape[1] >= A.shape[0]:
         S = np.empty((A.shape[0], A.shape[0]))
         _tria_householder(np.ascontiguousarray(A), S)
         return S
     return tria_lapack(A)
 
 
-@kernels.jit(sig='void(f8[:, :], f8[:, :])')
+@compiled.jit(sig='void(f8[:, :], f8[:, :])')
 def _tria_householder(A, S):
     """Write into ``S`` (n, n) the lower factor of ``A`` (n, k >= n): Householder on ``A^T``.
 
@@ -79,7 +79,7 @@ def _tria_householder(A, S):
             S[c, r] = sign * R[r, c] if c >= r else 0.0
 
 
-@kernels.warms_up
+@compiled.warms_up
 def _first_calls():
     _tria_householder(np.zeros((2, 4)), np.empty((2, 2)))
     _predict_moments(np.zeros((2, 4)), np.ones(2), np.eye(2), np.empty(2), np.empty((2, 4)),
@@ -216,7 +216,7 @@ def srckf_predict(x, S, fx, SQ, fading_sqrt=None):
     n = len(x)
     X = S @ cubature_points(n) + x[:, None]
     Xp = _propagate(fx, X)
-    if kernels.COMPILED:
+    if compiled.COMPILED:
         xp, chi_star, S_pred = np.empty(n), np.empty((n, 2 * n)), np.empty((n, n))
         fade = np.ones(n) if fading_sqrt is None else np.asarray(fading_sqrt, dtype=float)
         Xp, SQ = np.ascontiguousarray(Xp, dtype=float), np.ascontiguousarray(SQ, dtype=float)
@@ -241,7 +241,7 @@ def _check_shapes(agree):
         raise ValueError('square-root CKF: arguments of mismatched shapes')
 
 
-@kernels.jit(sig='void(f8[:, :], f8[:], f8[:, :], f8[:], f8[:, :], f8[:, :])')
+@compiled.jit(sig='void(f8[:, :], f8[:], f8[:, :], f8[:], f8[:, :], f8[:, :])')
 def _predict_moments(Xp, fade, SQ, xp, chi_star, S):
     """Compiled tail of :func:`srckf_predict`: ``xp`` (n,), ``chi_star`` (n, 2n), ``S`` (n, n).
 
@@ -251,7 +251,7 @@ def _predict_moments(Xp, fade, SQ, xp, chi_star, S):
     _tria_householder(_moments(Xp, fade, SQ, xp, chi_star), S)
 
 
-@kernels.jit
+@compiled.jit
 def _moments(P, scale, root, mean, dev):
     """Row means of the points ``P`` (k, N) and their weighted deviations; return ``Tria``'s input.
 
@@ -287,7 +287,7 @@ def srckf_update(x, S, z, hx, SR):
     n = len(x)
     X = S @ cubature_points(n) + x[:, None]
     Z = _propagate(hx, X)
-    if kernels.COMPILED:
+    if compiled.COMPILED:
         X, Z = np.ascontiguousarray(X, dtype=float), np.ascontiguousarray(Z, dtype=float)
         x, z = np.asarray(x, dtype=float), np.asarray(z, dtype=float)
         SR = np.ascontiguousarray(SR, dtype=float)
@@ -316,8 +316,8 @@ def srckf_update(x, S, z, hx, SR):
     return x, S, CubatureUpdate(y, zp, Szz @ Szz.T, Pxz, K, eta, chi, Szz, w)
 
 
-@kernels.jit(sig='b1(f8[:, :], f8[:], f8[:, :], f8[:], f8[:, :], f8[:], f8[:, :], f8[:], '
-                 'f8[:], f8[:, :], f8[:, :], f8[:, :], f8[:, :], f8[:, :], f8[:])')
+@compiled.jit(sig='b1(f8[:, :], f8[:], f8[:, :], f8[:], f8[:, :], f8[:], f8[:, :], f8[:], '
+              'f8[:], f8[:, :], f8[:, :], f8[:, :], f8[:, :], f8[:, :], f8[:])')
 def _update_moments(X, x, Z, z, SR, x_new, S_new, y, zp, eta, chi, Szz, Pxz, K, w):
     """Compiled :func:`srckf_update` after ``hx``; False (nothing usable) if ``Szz`` is singular.
 

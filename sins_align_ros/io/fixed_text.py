@@ -17,7 +17,7 @@ so is every row when the kernels are not compiled (``SINS_ALIGN_NO_JIT=1``, no n
 """
 import numpy as np
 
-from ..nav import kernels
+from .. import compiled
 
 #: magnitudes from here on are formatted by Python (the row of them)
 _LARGE = 1e15
@@ -28,7 +28,7 @@ _PAIRS = np.frombuffer(b''.join(b'%02d' % i for i in range(100)), np.uint8)
 _POW10 = np.array([10 ** i for i in range(20)], np.uint64)
 
 
-@kernels.jit(sig='Tuple((u1[:], i8[:], b1[:]))(f8[:, :], i8[:], i8, i8[:], u1[:, :], i8[:])')
+@compiled.jit(sig='Tuple((u1[:], i8[:], b1[:]))(f8[:, :], i8[:], i8, i8[:], u1[:, :], i8[:])')
 def _format_rows(values, decimals, text_col, text_index, text_bytes, text_len):
     """Kernel of :func:`format_table`: ``(buf, row_end, python_rows)``.
 
@@ -125,7 +125,7 @@ def _format_rows(values, decimals, text_col, text_index, text_bytes, text_len):
     return buf[:k], row_end, python_rows
 
 
-@kernels.warms_up
+@compiled.warms_up
 def _first_calls():
     _format_rows(np.zeros((1, 1)), np.ones(1, np.int64), 0, np.zeros(1, np.int64),
                  np.zeros((1, 1), np.uint8), np.zeros(1, np.int64))
@@ -165,7 +165,7 @@ def table_pieces(values, decimals, text, text_col):
     """
     values = np.ascontiguousarray(values, dtype=float)
     decimals = np.asarray(decimals, dtype=np.int64)
-    if not kernels.COMPILED:
+    if not compiled.COMPILED:
         yield _python_rows(values, decimals, text, text_col, np.arange(len(values)))
         return
     names, index = _factorise_runs(text)

@@ -47,6 +47,7 @@ import math
 
 import numpy as np
 
+from .. import compiled
 from ..nav import earth, kernels
 
 N_STATES = 10
@@ -128,7 +129,7 @@ def propagate(x, f_n, v_n, lat, h, dt, substeps=1, C_b_n=None):
     (:func:`_rk4_columns`) when the kernels are; :func:`propagate_reference` otherwise,
     and a test keeps the two equal to round-off.
     """
-    if not kernels.COMPILED:
+    if not compiled.COMPILED:
         return propagate_reference(x, f_n, v_n, lat, h, dt, substeps, C_b_n)
     x = np.asarray(x, dtype=float)
     X = np.ascontiguousarray(x.reshape(len(x), -1))
@@ -143,7 +144,7 @@ def propagate(x, f_n, v_n, lat, h, dt, substeps=1, C_b_n=None):
 _NO_ATTITUDE = np.zeros((3, 3))
 
 
-@kernels.jit
+@compiled.jit
 def _terms(lat, h, f_n, v_n):
     """Return the position-dependent constants of :func:`_derivative_column` (17,).
 
@@ -167,7 +168,7 @@ def _terms(lat, h, f_n, v_n):
     return terms
 
 
-@kernels.jit
+@compiled.jit
 def _derivative_column(x, k, terms, C):
     """:func:`derivative` of one state ``x`` (n,) into ``k`` (n,), scalar arithmetic.
 
@@ -203,7 +204,7 @@ def _derivative_column(x, k, terms, C):
         k[1] += C[1, 0] * x[10] + C[1, 1] * x[11] + C[1, 2] * x[12]
 
 
-@kernels.jit(sig='void(f8[:, :], f8, f8, f8[:], f8[:], f8[:, :], f8, i8, f8[:, :])')
+@compiled.jit(sig='void(f8[:, :], f8, f8, f8[:], f8[:], f8[:, :], f8, i8, f8[:, :])')
 def _rk4_columns(X, lat, h, f_n, v_n, C, dt, substeps, out):
     """:func:`propagate_reference` of every column of ``X`` (n, N) into ``out`` (n, N)."""
     n, m = X.shape
@@ -231,7 +232,7 @@ def _rk4_columns(X, lat, h, f_n, v_n, C, dt, substeps, out):
             out[i, j] = x[i]
 
 
-@kernels.warms_up
+@compiled.warms_up
 def _first_calls():
     for n in (N_STATES, N_STATES_ACCEL):
         propagate(np.zeros((n, 2)), np.zeros(3), np.zeros(3), 0.5, 0.0, 1.0)

@@ -46,6 +46,7 @@ import math
 import numpy as np
 
 from . import large_misalignment as lm
+from .. import compiled
 from ..nav import earth, kernels
 from ..nav.frames import skew
 
@@ -117,13 +118,13 @@ def F_matrix(C_b_n, f_n, v_n, lat, h, tau_g, tau_a, n_states=15):
     if n_states not in (15, 18):
         raise ValueError(f'n_states must be 15 or 18, not {n_states}')
     F = np.zeros((n_states, n_states))
-    _fill_F(F, kernels.kernel_array(C_b_n), kernels.kernel_array(f_n),
-            kernels.kernel_array(v_n), float(lat), float(h), 1.0 / tau_g,
+    _fill_F(F, compiled.kernel_array(C_b_n), compiled.kernel_array(f_n),
+            compiled.kernel_array(v_n), float(lat), float(h), 1.0 / tau_g,
             1.0 / tau_a)
     return F
 
 
-@kernels.jit(sig='void(f8[:, :], f8[:, :], f8[:], f8[:], f8, f8, f8, f8)')
+@compiled.jit(sig='void(f8[:, :], f8[:, :], f8[:], f8[:], f8, f8, f8, f8)')
 def _fill_F(F, C, f, v, lat, h, ig, ia):
     """Write :func:`F_matrix`'s non-zero entries into the zeroed ``F`` (15 or 18 square).
 
@@ -175,7 +176,7 @@ def _fill_F(F, C, f, v, lat, h, ig, ia):
         F[i_nab + i, i_nab + i] = -ia
 
 
-@kernels.warms_up
+@compiled.warms_up
 def _first_calls():
     for n in (15, 18):
         F_matrix(np.eye(3), np.zeros(3), np.zeros(3), 0.5, 0.0, 1.0, 1.0, n)

@@ -27,6 +27,7 @@ import math
 
 import numpy as np
 
+from .. import compiled
 from . import kernels
 
 # --- fixed frame changes (vector components) --------------------------------
@@ -135,7 +136,7 @@ def orthonormalize(C):
     otherwise the SVD's ``U V^T``. The two agree to round-off (test_frames.py).
     """
     C = np.asarray(C, dtype=float)
-    if kernels.COMPILED and C.shape == (3, 3):
+    if compiled.COMPILED and C.shape == (3, 3):
         out = np.empty((3, 3))
         if kernels.polar_factor(np.ascontiguousarray(C), out):
             return out
@@ -158,7 +159,7 @@ def reorthonormalize(C):
     ``C (I - E / 2)`` when ``|E|`` is within :data:`NEWTON_SCHULZ_MAX` (the step squares
     the departure, ``3/4 |E|^2``, to round-off); else the SVD.
     """
-    if kernels.COMPILED:
+    if compiled.COMPILED:
         return orthonormalize(C)
     E = C.T @ C - _I3
     err = np.abs(E).max()

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import compiled
 from . import earth, kernels
 from .kernels import rodrigues9 as _rodrigues9
 
@@ -303,13 +304,13 @@ class Strapdown:
         """
         # contiguous and writeable: numba compiles a separate version for read-only arrays
         # (a broadcast dt is one), which cost a live node a second at its first block
-        dtheta = kernels.kernel_array(dtheta)
-        dv = kernels.kernel_array(dv)
+        dtheta = compiled.kernel_array(dtheta)
+        dv = compiled.kernel_array(dv)
         n = len(dtheta)
         dt = np.asarray(dt, dtype=float)
         if dt.shape != (n,):              # one interval for every sample
             dt = np.broadcast_to(dt, (n,))
-        dt = kernels.kernel_array(dt)
+        dt = compiled.kernel_array(dt)
         out = {'C_b_n': np.empty((n, 3, 3)), 'v_n': np.empty((n, 3)), 'pos': np.empty((n, 3)),
                'dv_sf': np.empty((n, 3))}
         if n == 0:
@@ -403,7 +404,7 @@ class StationaryStrapdown(Strapdown):
         calls); without, :meth:`run_vectorised`. The two agree to round-off
         (test_mechanization.py).
         """
-        if kernels.COMPILED:
+        if compiled.COMPILED:
             out = Strapdown.run(self, dtheta, dv, dt)
             return {'C_b_n': out['C_b_n'], 'v_n': out['v_n']}
         return self.run_vectorised(dtheta, dv, dt)

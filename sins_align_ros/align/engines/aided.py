@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...filters.cubature import batched
+from ... import compiled
 from ...nav import kernels
 from ...nav.mechanization import MechanizationOptions, Strapdown
 from ...units import DPH
@@ -84,7 +85,7 @@ class IntervalSums:
         self.T = kernels.interval_sums(
             self.T, self.dv_sum, self.v_sum, self.C_sum if self.attitude else _NO_C_SUM,
             self.attitude, out['dv_sf'], out['v_n'], out['C_b_n'],
-            kernels.kernel_array(dt))
+            compiled.kernel_array(dt))
 
 
 #: no sample index (:meth:`GnssAidedEngine._interval_full` between GNSS epochs)

@@ -1,3 +1,4 @@
-"""What a run is expected to reach before it runs (expectation) and the report of it; nothing
-below imports this room.
+"""Forecast room: the time and accuracy a run will reach, and the report of it.
+
+Nothing below imports it.
 """

@@ -1,3 +1,4 @@
-"""Input handling: IMU and GNSS samples checked, converted to the body frame and buffered; no
-engine is loaded from here.
+"""Inputs room: IMU and GNSS samples checked, brought into the body frame and buffered.
+
+No engine is loaded from here (a contract checks it).
 """

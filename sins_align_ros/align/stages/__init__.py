@@ -1,3 +1,4 @@
-"""The stages of an alignment: coarse, the self-check, handover, fine and what watches it
-(convergence, consistency, the slow-error monitor).
+"""Stages room: coarse, the self-check, handover, fine, and what watches the fine stage.
+
+The watchers are convergence, consistency, the slow-error monitor and the course heading.
 """
