@@ -1,12 +1,12 @@
-"""The time and accuracy to expect (align/forecast/expectation.py) against closed forms."""
+"""The time and accuracy to expect (align/forecast: expectation, variance) against closed forms."""
 import math
 
 import numpy as np
 import pytest
 
 from sins_align_ros.align.stages.convergence import ConvergenceMonitor
-from sins_align_ros.align.forecast.expectation import (MOTION, covariance_shadow, first_aligned,
-                                                       riccati)
+from sins_align_ros.align.forecast.expectation import MOTION
+from sins_align_ros.align.forecast.variance import covariance_shadow, first_aligned, riccati
 from sins_align_ros.align.pipeline import AlignmentPipeline
 from sins_align_ros.eval.run import run_scenario
 from tolerance import assert_roundoff

@@ -18,13 +18,13 @@ one of two ways, by what that covariance depends on:
 * **Moving base, linear filters** (``kf`` and the navigation family: ``forecast_model`` of
   the engine). A linear filter's covariance does not depend on the measured values, only
   on its model: the forecast runs the filter's covariance on, epoch after epoch, with the
-  transition, process noise and measurement of its last epoch (:func:`covariance_shadow`),
-  i.e. as if the motion of the last GNSS interval went on. A ship accelerating steadily
-  gains heading information faster and faster (its heading variance halves every ~10 s
-  late in the manoeuvre), which the variance's own trend below cannot foresee and the
-  model's covariance does: ship_underway forecast 137-140 s from 10 s into fine
-  alignment, actual 136 s (bench/results/expectation.md). A change of motion (a car that
-  starts to drive, a turn) changes the forecast when it comes.
+  transition, process noise and measurement of its last epoch
+  (:func:`~.variance.covariance_shadow`), i.e. as if the motion of the last GNSS interval
+  went on. A ship accelerating steadily gains heading information faster and faster (its
+  heading variance halves every ~10 s late in the manoeuvre), which the variance's own
+  trend below cannot foresee and the model's covariance does: ship_underway forecast
+  137-140 s from 10 s into fine alignment, actual 136 s (bench/results/expectation.md). A
+  change of motion (a car that starts to drive, a turn) changes the forecast when it comes.
 * **Moving base, other filters** (the cubature and variational filters on the
   large-azimuth model). The covariance depends on the manoeuvres, which
   no model of the sensors knows in advance: the forecast extrapolates the filter's own
@@ -43,7 +43,9 @@ Both yield an :class:`Expectation`: the expected time (seconds of data from the 
 sample) to ``aligned`` and to a ready tilt, and the misalignment 1-sigma (E, N, U) expected
 when ``aligned`` comes; or, where the bounds will not be met (a heading limit above
 ``aligned_max_heading_sigma_deg``, a gyro that cannot see Earth rate at rest), ``inf`` with
-the reason and the best 1-sigma expected.
+the reason and the best 1-sigma expected. This module gathers what a forecast needs from
+the pipeline and makes it; the arithmetic on variance curves (the closed forms, the
+covariance run on, the pipeline's rules applied to a curve) is :mod:`.variance`.
 """
 import copy
 import math
@@ -51,17 +53,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...models.stationary import unobservable_variance
 from ...nav import earth
 from ...nav.frames import dcm_to_euler, euler_cov_from_phi_cov
-from ...units import DPH
 from ..stages import coarse_stage
-from ..stages.convergence import MIN_SPAN_S, SHRINK, WINDOW_S
 from ..engines.factory import is_aided
 from ..stages.fine_stage import Clock
-from ..engines.force import ANGLE_UNKNOWN_VAR
 from ..stages.handover import fine_stage_for
 from ..inputs.motion import choose_filter, gnss_motion
+from .variance import covariance_shadow, first_aligned, heading_limit_var, process_noise, riccati
 
 #: shadow filter epochs per second (still base)
 SHADOW_HZ = 1.0
@@ -76,14 +75,6 @@ TREND_MIN_S = 8.0
 #: what a forecast is based on
 STILL, TREND, DONE = 'still-base covariance forecast', 'trend of the filter sigma', 'aligned'
 MOTION = 'filter covariance run on with the last interval\'s motion'
-#: the covariance shadow stops once the attitude variances changed less than this
-#: fraction over :data:`SETTLED_S` s (the rest of the horizon holds the last value)
-SETTLED = 1e-3
-SETTLED_S = 60.0
-#: the shadow steps one GNSS interval at a time over this much of its horizon, then
-#: doubles its step (up to :data:`MOTION_MAX_LUMP` intervals) every as much again, s
-MOTION_FINE_S = 120.0
-MOTION_MAX_LUMP = 32
 #: a moving-base forecast is made again after this much data, s
 MOTION_REFRESH_S = 5.0
 
@@ -103,82 +94,6 @@ class Expectation:
     sigma: np.ndarray
     basis: str
     note: str = ''
-
-
-def process_noise(noise, cfg):
-    """Variance growth (3,) rad^2/s of the misalignment with no measurement: the gyro's.
-
-    Angle random walk, plus the bias drift a Gauss-Markov instability of sigma ``s`` and
-    correlation time ``tau`` adds (``2 s^2 / tau``, as the filters' drift states).
-    """
-    drift = 2.0 * (cfg['gyro_bias_instability_dph'] * DPH) ** 2 / cfg['gyro_bias_tau_s']
-    return np.full(3, noise.gyro_arw ** 2 + drift)
-
-
-def heading_limit_var(lat, noise):
-    """Heading variance (rad^2) a gyro that sees Earth rate cannot beat from it: seed 002 eq. 15.
-
-    ``(eps / (W cos L))^2``; zero where the gyro cannot see Earth rate (its bias above half
-    the horizontal Earth rate, as the self-check judges): then only motion or an external
-    heading set the heading and there is no such limit.
-    """
-    wc = earth.OMEGA_IE * math.cos(lat)
-    if noise.gyro_bias > 0.5 * wc:
-        return 0.0
-    return float(unobservable_variance(lat, noise)[2])
-
-
-def riccati(P0, q, r, tau):
-    """Solve ``dP/dt = q - r P^2`` from ``P0`` at times ``tau`` (M,); per axis, (M, 3).
-
-    ``P0``, ``q``, ``r`` (3,); ``r <= 0`` (no information): ``P0 + q tau``.
-    """
-    tau = np.asarray(tau, dtype=float)[:, None]
-    P0, q, r = (np.broadcast_to(np.asarray(a, dtype=float), (3,)) for a in (P0, q, r))
-    out = P0 + q * tau
-    for k in range(3):
-        if r[k] <= 0.0:
-            continue
-        if q[k] <= 0.0:
-            out[:, k] = P0[k] / (1.0 + r[k] * P0[k] * tau[:, 0])
-            continue
-        P_ss, rate = math.sqrt(q[k] / r[k]), 2.0 * math.sqrt(q[k] * r[k])
-        c = (P0[k] - P_ss) / (P0[k] + P_ss)
-        e = c * np.exp(-rate * tau[:, 0])
-        out[:, k] = P_ss * (1.0 + e) / (1.0 - e)
-    return out
-
-
-def first_aligned(t, P, t_stage, converged, min_duration, max_tilt, max_heading,
-                  restages=True):
-    """Apply the pipeline's rules to a forecast variance curve ``P`` (M, 3) at ``t`` (M,).
-
-    The stage (started at ``t_stage``; ``converged`` already latched) settles where it has
-    run ``min_duration`` and, for a still-base stage (``restages``), its heading sigma
-    fell less than 2 % against the oldest of the last :data:`~.convergence.WINDOW_S` s
-    (spanning at least ``MIN_SPAN_S``); ``aligned`` from then on where the tilt and
-    heading 1-sigma are within the bounds (:mod:`.fine_stage`). Returns
-    ``(index of aligned or None, index of a ready tilt or None)``.
-    """
-    s = np.sqrt(np.maximum(P, 0.0))
-    tilt_ok = np.maximum(s[:, 0], s[:, 1]) <= max_tilt
-    i_tilt = np.flatnonzero(tilt_ok)
-    i_tilt = int(i_tilt[0]) if len(i_tilt) else None
-    if not converged:
-        # the monitor compares with the oldest sigma of its window, which must span enough
-        old = np.searchsorted(t, t - WINDOW_S, side='left')
-        ok = t - t_stage >= min_duration
-        if restages:
-            ok &= t - t[old] >= MIN_SPAN_S
-            ok[ok] = s[ok, 2] >= SHRINK * s[old[ok], 2]
-        conv = np.flatnonzero(ok)
-        if not len(conv):
-            return None, i_tilt
-        start = int(conv[0])
-    else:
-        start = 0
-    good = np.flatnonzero(tilt_ok[start:] & (s[start:, 2] <= max_heading))
-    return (start + int(good[0]) if len(good) else None), i_tilt
 
 
 class Forecaster:
@@ -265,63 +180,6 @@ class Forecaster:
             e.t_aligned = math.inf
         e.basis, e.note = TREND, note
         return e
-
-
-def covariance_shadow(model, horizon_s):
-    """Run a linear filter's covariance on for ``horizon_s``: ``(tau (M,), P_att (M, 3))``.
-
-    ``model``: an engine's ``forecast_model()`` (``P``, ``Phi``, ``Q``, ``H``, ``R``, ``T``,
-    ``i_phi``, ``heading_cap``, ``heading_claim``), its epoch repeated every ``T`` seconds:
-    the prior recursion ``P- <- Q + Phi P- (I + S P-)^-1 Phi^T`` with ``S = H^T R^-1 H``,
-    whose posterior after each epoch is ``P- (I + S P-)^-1``. ``P_att``: the attitude
-    variances of that posterior as published (a heading variance beyond
-    ``heading_claim`` is an unknown angle's; the heading held within ``heading_cap`` as the
-    engine holds it). One epoch a step over the first :data:`MOTION_FINE_S` s, then the
-    step doubles every as much again up to :data:`MOTION_MAX_LUMP` epochs, with the exact
-    map of that many epochs (the doubling recursion of Chu, Fan and Lin's structure-
-    preserving doubling algorithm for the discrete Riccati equation): a few hundred steps,
-    a few ms, for an hour. Stops once the variances change less than :data:`SETTLED` over
-    :data:`SETTLED_S` s; the last row, at ``horizon_s``, holds them.
-    """
-    P, Phi, Q, H, R, T = (model[k] for k in ('P', 'Phi', 'Q', 'H', 'R', 'T'))
-    i_att = np.arange(len(P))[model['i_phi']]
-    k_head, cap = i_att[2], model['heading_cap']
-    eye = np.eye(len(P))
-    # the map of `lump` epochs: P- -> Hq + At^T P- (I + Gs P-)^-1 At
-    At, Gs, Hq = Phi.T, H.T @ np.linalg.solve(R, H), Q
-    S = Gs
-    lump, span_end = 1, MOTION_FINE_S
-    Pm = Phi @ P @ Phi.T + Q                        # the prior of the next epoch
-    taus, rows, t, last, t_checked = [], [], 0.0, None, 0.0
-    while True:
-        Pp = np.linalg.solve(eye + Pm @ S, Pm)          # P- (I + S P-)^-1, symmetric
-        Pp = 0.5 * (Pp + Pp.T)
-        t += T * lump
-        taus.append(t)
-        rows.append(np.diag(Pp)[i_att])
-        if t >= horizon_s:
-            break
-        if t - t_checked >= SETTLED_S:
-            if last is not None and np.all(np.abs(rows[-1] - last) <= SETTLED * last):
-                taus.append(horizon_s)
-                rows.append(rows[-1])
-                break
-            last, t_checked = rows[-1], t
-        if cap is not None and Pm[k_head, k_head] > cap:
-            sc = np.ones(len(P))
-            sc[k_head] = math.sqrt(cap / Pm[k_head, k_head])
-            Pm = Pm * np.outer(sc, sc)
-        if t >= span_end and lump < MOTION_MAX_LUMP:
-            W = np.linalg.inv(eye + Gs @ Hq)
-            At, Gs, Hq = At @ W @ At, Gs + At @ W @ Gs @ At.T, Hq + At.T @ Hq @ W @ At
-            lump *= 2
-            span_end += MOTION_FINE_S
-        Pm = Hq + At.T @ Pm @ np.linalg.solve(eye + Gs @ Pm, At)
-        Pm = 0.5 * (Pm + Pm.T)
-    Pa = np.array(rows)
-    if model['heading_claim'] is not None:
-        Pa[:, 2] = np.where(Pa[:, 2] > model['heading_claim'], ANGLE_UNKNOWN_VAR, Pa[:, 2])
-    return np.array(taus), Pa
 
 
 def _apply_rules(p, fine, t_abs, Pf):

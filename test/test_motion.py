@@ -1,0 +1,175 @@
+"""Whether GNSS shows the base moving, what ``fine_filter: auto`` runs (align/inputs/motion.py).
+
+Windows built from closed forms: GNSS velocities of a known speed, IMU increments of a body
+at rest, turning at a constant rate, or driving with a known velocity profile; the
+judgements are checked against the thresholds of the module and the profile's truth.
+"""
+import math
+import re
+
+import numpy as np
+import pytest
+
+from sins_align_ros.align.inputs.gnss_buffer import GnssBuffer
+from sins_align_ros.align.inputs.installation import Installation
+from sins_align_ros.align.inputs.motion import (DRIVE_DV_MPS, DRIVE_TURN_RAD, NEEDS_GNSS, Motion,
+                                                cannot_start, choose_filter, gnss_motion,
+                                                imu_translation, judge, watch)
+from sins_align_ros.align.params import defaults
+from sins_align_ros.nav import earth
+
+DT, T = 0.01, 60.0
+G = 9.80665
+LAT = math.radians(45.0)
+
+
+def _cfg(**kw):
+    cfg = defaults()
+    cfg.update(kw)
+    return cfg
+
+
+def _gnss(v_en, t0=-3.0, t1=T + 3.0, vel_var=None):
+    """GNSS velocity messages at 1 Hz over [t0, t1] of a constant ENU velocity."""
+    g = GnssBuffer()
+    for t in np.arange(t0, t1 + 0.5, 1.0):
+        g.velocity_fix(t, [v_en[0], v_en[1], 0.0], vel_var)
+    return g
+
+
+def _window(w_b, f_b):
+    """Window (t, dtheta, dv, dt) of ``T`` s at ``DT`` of rates / forces ``w_b(t)``, ``f_b(t)``."""
+    t = DT * np.arange(1, int(round(T / DT)) + 1)
+    return t, w_b(t) * DT, f_b(t) * DT, np.full(len(t), DT)
+
+
+def _still():
+    w = np.array([0.0, earth.OMEGA_IE * math.cos(LAT), earth.OMEGA_IE * math.sin(LAT)])
+    return _window(lambda t: np.tile(w, (len(t), 1)),
+                   lambda t: np.tile([0.0, 0.0, G], (len(t), 1)))
+
+
+def _turning(turn_rad):
+    """A level body turning about its vertical axis by ``turn_rad`` over the window."""
+    r = turn_rad / T
+    return _window(lambda t: np.tile([0.0, 0.0, r], (len(t), 1)),
+                   lambda t: np.tile([0.0, 0.0, G], (len(t), 1)))
+
+
+def _driving(amp):
+    """A level body whose forward velocity is ``amp sin(2 pi t / T)`` (m/s), no rotation."""
+    w = 2.0 * math.pi / T
+    return _window(lambda t: np.zeros((len(t), 3)),
+                   lambda t: np.column_stack([amp * w * np.cos(w * t), 0 * t, G + 0 * t]))
+
+
+def _quadratic_residual(amp):
+    """Largest departure (m/s) of ``amp sin(2 pi t / T)`` from its least-squares quadratic."""
+    t = DT * np.arange(1, int(round(T / DT)) + 1)
+    v = amp * np.sin(2.0 * math.pi * t / T)
+    return float(np.max(np.abs(v - np.polyval(np.polyfit(t, v, 2), t))))
+
+
+# -- GNSS ----------------------------------------------------------------------------------
+def test_gnss_speed_against_the_speed_threshold_and_the_lever_arm():
+    cfg = _cfg()                  # motion_speed_mps 0.5 above 4 x gnss_vel_sigma_mps 0.1
+    tt = np.array([0.0, T])
+    assert gnss_motion(_gnss((0.3, 0.4)), cfg, tt) == (False, pytest.approx(0.5))
+    moving, speed = gnss_motion(_gnss((0.36, 0.48)), cfg, tt)
+    assert moving and speed == pytest.approx(0.6, rel=1e-12)
+    # an antenna swaying at 0.2 m/s on its mast: the IMU moves at least 0.4 m/s
+    moving, speed = gnss_motion(_gnss((0.36, 0.48)), cfg, tt, arm_speed=0.2)
+    assert not moving and speed == pytest.approx(0.4, rel=1e-12)
+    assert gnss_motion(_gnss((5.0, 0.0)), cfg, tt, arm_speed=9.0) == (False, 0.0)
+    # no GNSS: nothing is judged
+    assert gnss_motion(GnssBuffer(), cfg, tt) == (False, None)
+
+
+def test_noisy_gnss_velocity_raises_the_threshold_to_four_sigma():
+    tt = np.array([0.0, T])
+    g = _gnss((0.7, 0.0))
+    assert gnss_motion(g, _cfg(gnss_vel_sigma_mps=0.1), tt)[0]
+    assert not gnss_motion(g, _cfg(gnss_vel_sigma_mps=0.2), tt)[0]       # 4 sigma = 0.8
+    # a filter that takes R from the messages judges with their sigma: 0.3 m/s -> 1.2
+    g = _gnss((1.0, 0.0), vel_var=[0.09, 0.09])
+    assert gnss_motion(g, _cfg(fine_filter='ckf'), tt)[0] is False
+    assert gnss_motion(g, _cfg(fine_filter='ckf', use_reported_gnss_covariance=False), tt)[0]
+
+
+def test_auto_runs_the_moving_filter_only_on_a_moving_base():
+    cfg = _cfg(auto_still_filter='stationary12', auto_moving_filter='vbckf')
+    assert choose_filter(cfg, False) == 'stationary12'
+    assert choose_filter(cfg, True) == 'vbckf'
+    cfg['fine_filter'] = 'stationary10'       # a filter chosen by name is kept either way
+    assert choose_filter(cfg, True) == choose_filter(cfg, False) == 'stationary10'
+
+
+def test_watch_restarts_a_stationary_filter_and_an_aided_one_without_heading():
+    cfg = _cfg(fine_filter='reduced7')
+    g = _gnss((2.0, 0.0))
+    why = watch(g, cfg, T, aided=False, heading_known=True)
+    assert 'moving at 2.0 m/s' in why and 'reduced7 no longer holds' in why
+    assert 'heading becomes observable' in watch(g, cfg, T, aided=True, heading_known=False)
+    assert watch(g, cfg, T, aided=True, heading_known=True) is None
+    assert watch(_gnss((0.1, 0.0)), cfg, T, aided=False, heading_known=True) is None
+    assert watch(GnssBuffer(), cfg, T, aided=False, heading_known=True) is None
+
+
+# -- the IMU -------------------------------------------------------------------------------
+def test_the_imu_at_rest_or_at_constant_acceleration_shows_no_drive():
+    assert imu_translation(_still()) is None
+    # a constant force is quadratic in the velocity integral: a tilt, not a drive
+    accel = _window(lambda t: np.zeros((len(t), 3)),
+                    lambda t: np.tile([0.5, 0.0, G], (len(t), 1)))
+    assert imu_translation(accel) is None
+    short = tuple(a[:9] for a in _driving(10.0))
+    assert imu_translation(short) is None             # fewer than 10 samples: not judged
+
+
+@pytest.mark.parametrize('amp', [1.0, 2.0])
+def test_a_drive_is_told_by_its_departure_from_a_quadratic(amp):
+    want = _quadratic_residual(amp)
+    msg = imu_translation(_driving(amp))
+    if want < DRIVE_DV_MPS:
+        assert msg is None
+        return
+    got = float(re.fullmatch(r'changes its velocity by ([0-9.]+) m/s', msg).group(1))
+    # printed to 0.1 m/s; the rectangle sum of the samples differs from the sine by
+    # at most amp * w * DT = 0.002 m/s
+    assert abs(got - want) <= 0.05 + amp * 2 * math.pi / T * DT
+
+
+def test_a_turn_is_told_beyond_thirty_degrees():
+    assert imu_translation(_turning(DRIVE_TURN_RAD - math.radians(1.0))) is None
+    msg = imu_translation(_turning(math.radians(75.0)))
+    assert msg == 'turns by 75 deg'
+
+
+# -- the coarse window's judgement ---------------------------------------------------------
+def test_judge_and_cannot_start():
+    cfg = _cfg()
+    drive = _driving(3.0)
+    m = judge(_gnss((3.0, 0.0)), cfg, drive)
+    assert m.gnss and m.moving and m.drive is None and m.speed == pytest.approx(3.0)
+    m = judge(_gnss((0.1, 0.0)), cfg, drive)      # a crawl below motion_speed_mps, driving
+    assert not m.gnss and m.moving and m.drive.startswith('changes its velocity')
+    assert 'stationary filter reduced7 cannot align it' in cannot_start('reduced7', False, m)
+    assert cannot_start('kf', True, m) is None
+    m = judge(GnssBuffer(), cfg, drive)           # no GNSS, the IMU drives
+    assert not m.moving and m.speed is None
+    assert cannot_start('kf', True, m) == NEEDS_GNSS.format(what=m.drive)
+    m = judge(GnssBuffer(), cfg, _still())
+    assert m == Motion(False, None, None) and cannot_start('reduced7', False, m) is None
+    m = judge(_gnss((3.0, 0.0)), cfg, _still())
+    assert 'moving at 3.0 m/s' in cannot_start('stationary12', False, m)
+
+
+def test_judge_takes_the_lever_arms_speed_off_the_gnss_speed():
+    # a 2 m mast rolling at 0.3 rad/s: the antenna moves 0.6 m/s about the IMU
+    roll = _window(lambda t: np.tile([0.3, 0.0, 0.0], (len(t), 1)),
+                   lambda t: np.tile([0.0, 0.0, G], (len(t), 1)))
+    mast = Installation(lever_arm_m=(0.0, 0.0, 2.0))
+    g = _gnss((0.9, 0.0))
+    assert judge(g, _cfg(), roll).gnss
+    m = judge(g, _cfg(), roll, mast)
+    assert not m.gnss and m.speed == pytest.approx(0.3, rel=1e-9)
