@@ -59,14 +59,24 @@ which keeps the summed increments from cancelling exactly (a gyro noise of densi
 above. The variant ``vibwhite`` takes the vibration as the white noise of the same
 per-sample RMS instead (the density ``A^2 dt`` above), to show what that assumption costs.
 
-Variants (``--variants``): ``base`` (the cell as simulated); ``vel`` (GNSS velocity too,
-the ``consumer`` receiver's 0.08 m/s white, at the same 2.5 Hz epochs); ``white`` (the
-GNSS position error white only: no Gauss-Markov part); ``novib`` (no vibration);
-``vibwhite`` (vibration as white noise); ``prior`` (the second attitude prior).
-Priors: ``A`` = 2 deg tilt, 10 deg heading (1 sigma); ``B`` = 0.5 deg tilt, 3 deg heading.
-Velocity 1 m/s, position 3 m per axis; every sensor state its grade's 1-sigma (for the
-``mems`` grade, whose errors the simulator applies as given rather than drawn, that value
-is taken as the 1-sigma of an unknown constant, as the filters are told).
+Variants (``--variants``, :data:`VARIANTS`): ``base`` (the cell as simulated); ``vel``
+(GNSS velocity too, the ``consumer`` receiver's 0.08 m/s white, at the same 2.5 Hz
+epochs); ``white`` (the GNSS position error white only: no Gauss-Markov part); ``novib``
+(no vibration); ``vibwhite`` (vibration as white noise); ``noarw`` (no gyro white noise);
+``nogyromis`` (no gyro axis misalignment; grades that have one); ``arw9`` (gyro white
+noise 9 deg/sqrt(h), the self-check's 60-s figure for these vibrating triads,
+align/angle_walk.py); ``prior_loose``, ``prior_tight`` (the other attitude priors).
+Priors (1 sigma): ``A`` = 2 deg tilt, 10 deg heading (all variants but the two);
+``loose`` = 5 deg, 30 deg; ``tight`` = 0.5 deg, 3 deg (a prior this close to the end sigma
+is information of its own). Velocity 1 m/s, position 3 m per axis; every sensor state its
+grade's 1-sigma (for the ``mems`` grade, whose errors the simulator applies as given
+rather than drawn, that value is taken as the 1-sigma of an unknown constant, as the
+filters are told).
+
+Filter check (``--check``): the same model run as a filter (state and covariance, closed
+loop, :func:`run` ``data``) on each seed's simulated data of the ``base`` cell: its tilt
+errors against its sigma (the model's agreement with the simulator, and that the sigma
+is reached by a filter, not only by the covariance).
 
 The covariance depends on the trajectory only, not on the noise drawn: the seeds (1000,
 1001, 1002 by default) give the same P; the page says so after comparing them, and lists
@@ -96,7 +106,8 @@ sys.path.insert(0, str(ROOT))      # this checkout's package, not an installed c
 from sins_align_ros.eval.markdown import machine_summary, write_markdown  # noqa: E402
 from sins_align_ros.models import loosely_coupled as lc  # noqa: E402
 from sins_align_ros.nav import earth  # noqa: E402
-from sins_align_ros.nav.frames import euler_to_dcm  # noqa: E402
+from sins_align_ros.nav.frames import attitude_error, euler_to_dcm, rotvec_to_dcm  # noqa: E402
+from sins_align_ros.nav.mechanization import Strapdown  # noqa: E402
 from sins_align_ros.sim.gnss import GnssSpec  # noqa: E402
 from sins_align_ros.sim.imu import ideal_increments  # noqa: E402
 from sins_align_ros.sim.presets import SENSOR_GRADES, scenario  # noqa: E402
@@ -117,7 +128,7 @@ SEEDS = (1000, 1001, 1002)
 GRADES = ('mems', 'mems_ahrs')
 REPORT_S = (60.0, 120.0, 200.0, 300.0, 400.0)
 #: attitude priors (1 sigma, deg): tilt (E and N), heading
-PRIORS = {'A': (2.0, 10.0), 'B': (0.5, 3.0)}
+PRIORS = {'A': (2.0, 10.0), 'loose': (5.0, 30.0), 'tight': (0.5, 3.0)}
 VEL_PRIOR_MPS = 1.0
 POS_PRIOR_M = 3.0
 VARIANTS = {
@@ -126,8 +137,14 @@ VARIANTS = {
     'white': 'GNSS position error white only (no Gauss-Markov part)',
     'novib': 'no vibration',
     'vibwhite': 'vibration as white noise of the same per-sample RMS',
-    'prior': 'attitude prior B (0.5 deg tilt, 3 deg heading)',
+    'noarw': 'no gyro white noise (angle random walk)',
+    'nogyromis': 'no gyro axis misalignment',
+    'arw9': 'gyro white noise 9 deg/sqrt(h) (the self-check\'s figure for these triads)',
+    'prior_loose': 'attitude prior 5 deg tilt, 30 deg heading',
+    'prior_tight': 'attitude prior 0.5 deg tilt, 3 deg heading',
 }
+#: the filter check's normalized errors are taken from this time on, s
+CHECK_FROM_S = 100.0
 #: the off-diagonal entries (i, j) of a misalignment matrix, in state order
 OFF_DIAGONAL = tuple((i, j) for i in range(3) for j in range(3) if i != j)
 
@@ -267,17 +284,22 @@ class Result:
 
     ``t`` (M,); ``phi`` (M, 3) rad (E, N, U: the total attitude error); ``phi_slow``
     (M, 3) rad (without the vibration's jitter; equal to ``phi`` without vibration
-    states); ``accel_bias`` (M, 3) m/s^2 (body x, y, z).
+    states); ``accel_bias`` (M, 3) m/s^2 (body x, y, z). With a filter run
+    (:func:`run` ``data``): ``err`` (M, 3) rad the attitude error of its navigator at the
+    report times, ``nerr`` (E, 2) the tilt errors E, N over sigma at every epoch ``E`` after
+    :data:`CHECK_FROM_S`.
     """
 
     t: np.ndarray
     phi: np.ndarray
     phi_slow: np.ndarray
     accel_bias: np.ndarray
+    err: np.ndarray = None
+    nerr: np.ndarray = None
 
 
 def run(truth, spec, gnss, report_s, prior=PRIORS['A'], velocity_sigma=None,
-        vibration='states'):
+        vibration='states', data=None, rng=None):
     """Propagate and update the ideal filter's P along ``truth``; return a :class:`Result`.
 
     ``spec``: the simulated :class:`~sins_align_ros.sim.imu.ImuSpec`; ``gnss``: the
@@ -286,6 +308,18 @@ def run(truth, spec, gnss, report_s, prior=PRIORS['A'], velocity_sigma=None,
     ``prior`` (tilt deg, heading deg); ``velocity_sigma`` (m/s): also measure the velocity
     with this white noise at every epoch (None: positions only); ``vibration``
     ``'states'`` (exact) or ``'white'`` (see the module docstring).
+
+    ``data``: ``(block, start)``, a simulated run (a
+    :class:`~sins_align_ros.sim.scenario.SimBlock` of these ``spec`` and ``gnss``, positions
+    only, starting at ``truth``'s first step) and its truth at t = 0 ``(euler, v_n, pos)``,
+    to run the ideal filter on as well: a strapdown
+    navigator (nav/mechanization.py) started at the truth plus errors drawn from the prior
+    with ``rng``, the same ``A``, ``Q``, ``H``, ``R`` and gain, the GNSS position
+    differences as measurements, the attitude, velocity and position estimates fed back
+    into the navigator at every epoch and the constant sensor errors' estimates (biases,
+    scale factors, misalignments) into the increments it takes, so that the residual errors
+    are small enough for the linear model (the Markov, receiver and vibration states are
+    not fed back: they are small or short-lived).
     """
     dt = truth.dt
     lay = Layout(spec, gnss, vibration)
@@ -334,6 +368,8 @@ def run(truth, spec, gnss, report_s, prior=PRIORS['A'], velocity_sigma=None,
     out_phi, out_slow, out_ba, out_t = [], [], [], []
     F = np.zeros((n, n))
     g_prev = truth.gain[0]
+    filt = None if data is None else _Navigator(*data, P, rng, lay)
+    errs, nerrs = [], []
     for k in range(len(truth.t)):
         C, w_b, f_b = truth.C_b_n[k], truth.w_ib_b[k], truth.f_b[k]
         F[:15, :15] = lc.F_matrix(C, truth.f_n[k], truth.v_n[k], truth.lat[k], truth.h[k],
@@ -371,13 +407,21 @@ def run(truth, spec, gnss, report_s, prior=PRIORS['A'], velocity_sigma=None,
             Q[lay.vy, 3:6] = Q[3:6, lay.vy].T
             g_prev = g
         P = A @ P @ A.T + Q
+        if filt is not None:
+            filt.propagate(k, A)
         if (k + 1) % every == 0:
             S = H @ P @ H.T + R
             K = np.linalg.solve(S, H @ P).T
             IKH = eye - K @ H
             P = IKH @ P @ IKH.T + K @ R @ K.T
+            if filt is not None:
+                filt.update((k + 1) // every - 1, K, H)
+                if truth.t[k] > CHECK_FROM_S + 1e-9:
+                    nerrs.append(filt.error(k)[:2] / np.sqrt(np.diag(P)[0:2]))
         P = 0.5 * (P + P.T)
         if k in report_k:
+            if filt is not None:
+                errs.append(filt.error(k))
             out_t.append(report_k[k])
             out_phi.append(np.sqrt(np.diag(P)[0:3]))
             out_ba.append(np.sqrt(np.diag(P)[12:15]))
@@ -389,7 +433,80 @@ def run(truth, spec, gnss, report_s, prior=PRIORS['A'], velocity_sigma=None,
             else:
                 out_slow.append(out_phi[-1])
     return Result(t=np.array(out_t), phi=np.array(out_phi), phi_slow=np.array(out_slow),
-                  accel_bias=np.array(out_ba))
+                  accel_bias=np.array(out_ba), err=np.array(errs) if filt else None,
+                  nerr=np.array(nerrs) if filt else None)
+
+
+class _Navigator:
+    """The ideal filter's state side: a strapdown navigator with closed-loop feedback.
+
+    ``block``: a SimBlock, ``start`` its truth at t = 0 ``(euler, v_n, pos)``; ``P0`` the
+    initial covariance the navigator's initial errors (attitude, velocity, position) are
+    drawn from with ``rng``; ``lay`` the :class:`Layout`. The estimated constant sensor
+    errors ``b_g``, ``b_a`` (3,) and ``E_g = S_g + M_g``, ``E_a`` (3, 3) correct the
+    increments: ``dtheta_c = (I + E_g)^-1 (dtheta - b_g dt)``, likewise ``dv``.
+    """
+
+    def __init__(self, block, start, P0, rng, lay):
+        imu = block.imu
+        if block.gnss is None or block.gnss.v_n is not None:
+            raise ValueError('the filter check takes a position-only receiver')
+        self.imu, self.gnss = imu, block.gnss
+        self.dt = float(imu.t[1] - imu.t[0])
+        euler0, v0, (lat, lon, h) = start
+        e0 = rng.standard_normal(9) * np.sqrt(np.diag(P0)[:9])
+        R_M, R_N = earth.radii(lat)
+        self.nav = Strapdown(rotvec_to_dcm(-e0[0:3]) @ euler_to_dcm(np.asarray(euler0)),
+                             np.asarray(v0) + e0[3:6],
+                             lat + e0[7] / (R_M + h), lon + e0[6] / ((R_N + h) * math.cos(lat)),
+                             h + e0[8])
+        self.x = np.zeros(len(P0))
+        self.lay = lay
+        self.b_g, self.b_a = np.zeros(3), np.zeros(3)
+        self.E_g, self.E_a = np.zeros((3, 3)), np.zeros((3, 3))
+        self._inv_g, self._inv_a = np.eye(3), np.eye(3)
+
+    def propagate(self, k, A):
+        """Advance the navigator over sample ``k`` and the error state by ``A``."""
+        dth = self._inv_g @ (self.imu.dtheta[k] - self.b_g * self.dt)
+        dv = self._inv_a @ (self.imu.dv[k] - self.b_a * self.dt)
+        self.nav.update(dth, dv, self.dt)
+        self.x = A @ self.x
+
+    def _feed_sensors(self):
+        """Move the constant sensor errors' estimates from the state into the corrections."""
+        lay, x = self.lay, self.x
+        self.b_g += x[9:12]
+        self.b_a += x[12:15]
+        for E, s_sl, m_sl in ((self.E_g, lay.sg, lay.mg), (self.E_a, lay.sa, lay.ma)):
+            if s_sl is not None:
+                E[np.diag_indices(3)] += x[s_sl]
+            if m_sl is not None:
+                for (i, j), v in zip(OFF_DIAGONAL, x[m_sl]):
+                    E[i, j] += v
+        for sl in (slice(9, 15), lay.sg, lay.mg, lay.sa, lay.ma):
+            if sl is not None:
+                x[sl] = 0.0
+        self._inv_g = np.linalg.inv(np.eye(3) + self.E_g)
+        self._inv_a = np.linalg.inv(np.eye(3) + self.E_a)
+
+    def update(self, j, K, H):
+        """Take GNSS epoch ``j`` with gain ``K``; feed the navigation errors back."""
+        g, nav = self.gnss, self.nav
+        z = earth.local_offset_m(g.lat[j], g.lon[j], g.h[j], nav.lat, nav.lon, nav.h)
+        self.x = self.x + K @ (z - H[0:3] @ self.x)
+        phi, dv, dp = self.x[0:3], self.x[3:6], self.x[6:9]
+        nav.C_b_n = rotvec_to_dcm(phi) @ nav.C_b_n
+        nav.correct_velocity(dv)
+        R_M, R_N = earth.radii(nav.lat)
+        nav.correct_position(np.array([dp[1] / (R_M + nav.h),
+                                       dp[0] / ((R_N + nav.h) * math.cos(nav.lat)), dp[2]]))
+        self.x[0:9] = 0.0
+        self._feed_sensors()
+
+    def error(self, k):
+        """Return the navigator's attitude error, rad, ENU (3,), at sample ``k``'s end."""
+        return attitude_error(self.nav.C_b_n, euler_to_dcm(np.asarray(self.imu.euler[k])))
 
 
 def bound(sc):
@@ -451,9 +568,31 @@ def _variant_run(truth, sc, variant):
         spec = spec.with_(vibration_gyro_dps=0.0, vibration_accel_mps2=0.0)
     elif variant == 'vibwhite':
         kw['vibration'] = 'white'
-    elif variant == 'prior':
-        kw['prior'] = PRIORS['B']
+    elif variant == 'noarw':
+        spec = spec.with_(gyro_arw_dpsh=0.0)
+    elif variant == 'nogyromis':
+        if not np.any(spec.gyro_misalign_ppm):
+            return None
+        spec = spec.with_(gyro_misalign_ppm=0.0)
+    elif variant == 'arw9':
+        spec = spec.with_(gyro_arw_dpsh=9.0)
+    elif variant.startswith('prior_'):
+        kw['prior'] = PRIORS[variant[6:]]
+    elif variant != 'base':
+        raise ValueError(f'unknown variant {variant!r}')
     return run(truth, spec, gnss, REPORT_S, **kw)
+
+
+def check(sc, truth, seed):
+    """Run the ideal filter on seed ``seed``'s simulated run of cell ``sc``; a :class:`Result`.
+
+    The navigator's initial errors are drawn from prior A with the generator ``seed``.
+    """
+    stream = ScenarioStream(sc, seed=seed)
+    start = stream.imu.initial_truth()
+    block = stream.next_block(int(round(sc.duration * sc.imu_rate_hz)))
+    return run(truth, sc.imu, sc.gnss, REPORT_S, data=(block, start),
+               rng=np.random.default_rng(seed))
 
 
 def main():
@@ -462,6 +601,7 @@ def main():
     ap.add_argument('--grades', default=','.join(GRADES))
     ap.add_argument('--seeds', default=','.join(map(str, SEEDS)))
     ap.add_argument('--variants', default=','.join(VARIANTS))
+    ap.add_argument('--check', action='store_true', help='run the filter check too')
     ap.add_argument('--out', default=str(ROOT / 'bench' / 'results' / 'tilt_limit.md'))
     args = ap.parse_args()
     grades = args.grades.split(',')
@@ -469,8 +609,7 @@ def main():
     variants = args.variants.split(',')
     cmd = 'python bench/tilt_limit.py ' + ' '.join(sys.argv[1:])
     t_start = time.time()
-    results = {}
-    drawn = {}
+    results, drawn, checks = {}, {}, {}
     for grade in grades:
         sc = cell(grade)
         for seed in seeds:
@@ -480,18 +619,61 @@ def main():
             drawn[(grade, seed)] = drawn_errors(sc, seed)
             for v in variants:
                 t0 = time.time()
-                results[(grade, seed, v)] = _variant_run(truth, sc, v)
-                print(f'{grade} {seed} {v}: tilt {_am(results[(grade, seed, v)].phi[-1, 0])} / '
-                      f'{_am(results[(grade, seed, v)].phi[-1, 1])} ({time.time() - t0:.1f} s)',
-                      flush=True)
-    lines = page(args, cmd, grades, seeds, variants, results, drawn, time.time() - t_start)
+                r = results[(grade, seed, v)] = _variant_run(truth, sc, v)
+                if r is not None:
+                    print(f'{grade} {seed} {v}: tilt {_am(r.phi[-1, 0])} / {_am(r.phi[-1, 1])} '
+                          f'({time.time() - t0:.1f} s)', flush=True)
+            if args.check:
+                t0 = time.time()
+                r = checks[(grade, seed)] = check(sc, truth, seed)
+                print(f'{grade} {seed} check: error {_am(r.err[-1, 0])} / {_am(r.err[-1, 1])} '
+                      f'({time.time() - t0:.1f} s)', flush=True)
+    lines = page(cmd, grades, seeds, variants, results, drawn, checks, time.time() - t_start)
     write_markdown(args.out, lines)
     print('\n'.join(lines))
 
 
-def page(args, cmd, grades, seeds, variants, results, drawn, elapsed):
-    """Return the results page's lines."""
+def _variant_table(grade, seeds, variants, results, b):
+    """Rows of one grade's variant table, and whether the seeds' covariances are identical."""
     head = ' | '.join(f'{t:.0f} s' for t in REPORT_S)
+    ran = [v for v in variants if results[(grade, seeds[0], v)] is not None]
+    same = all(np.array_equal(results[(grade, s, v)].phi, results[(grade, seeds[0], v)].phi)
+               for s in seeds for v in ran)
+    rows = [f'| variant | {head} | no jitter, 400 s | within bound at 400 s |',
+            '|---|' + '---|' * (len(REPORT_S) + 2)]
+    for s in (seeds[:1] if same else seeds):
+        for v in ran:
+            r = results[(grade, s, v)]
+            cells = [f'{_am(p[0])} / {_am(p[1])}, {p[2] / DEG:.2f}' for p in r.phi]
+            worst = max(r.phi[-1, 0], r.phi[-1, 1])
+            name = f'`{v}`' if same else f'`{v}` ({s})'
+            rows.append(f'| {name} | ' + ' | '.join(cells)
+                        + f' | {_am(r.phi_slow[-1, 0])} / {_am(r.phi_slow[-1, 1])} | '
+                        + ('yes' if worst <= b else 'no') + f' ({_am(worst)}\' vs {_am(b)}\') |')
+    return rows, same
+
+
+def _check_table(grade, seeds, checks):
+    """Rows of one grade's filter-check table."""
+    rows = ['| seed | tilt error E / N at 400 s (\') | its sigma (\') | heading error / sigma '
+            'at 400 s (deg) | RMS of tilt error / sigma E / N, epochs after '
+            f'{CHECK_FROM_S:.0f} s | epochs inside 3 sigma E / N |', '|---|---|---|---|---|---|']
+    for s in seeds:
+        r = checks[(grade, s)]
+        rms = np.sqrt(np.mean(r.nerr ** 2, axis=0))
+        inside = np.mean(np.abs(r.nerr) <= 3.0, axis=0)
+        rows.append(f'| {s} | {_am(r.err[-1, 0])} / {_am(r.err[-1, 1])} | {_am(r.phi[-1, 0])} / '
+                    f'{_am(r.phi[-1, 1])} | {r.err[-1, 2] / DEG:.2f} / {r.phi[-1, 2] / DEG:.2f} | '
+                    f'{rms[0]:.2f} / {rms[1]:.2f} | {inside[0]:.1%} / {inside[1]:.1%} |')
+    allr = np.concatenate([checks[(grade, s)].nerr for s in seeds])
+    rms = np.sqrt(np.mean(allr ** 2, axis=0))
+    rows += ['', f'All {len(seeds)} seeds: RMS of tilt error / sigma {rms[0]:.2f} / {rms[1]:.2f} '
+             f'(E / N; 1 for a sigma that fits the error).']
+    return rows
+
+
+def page(cmd, grades, seeds, variants, results, drawn, checks, elapsed):
+    """Return the results page's lines."""
     lines = [
         '# Tilt sigma of the ideal estimator on robot:posonly (issue 44)', '',
         f'Command: `{cmd.strip()}` on {machine_summary()}; commit {_commit()}; '
@@ -500,10 +682,10 @@ def page(args, cmd, grades, seeds, variants, results, drawn, elapsed):
         'linearized error-state Kalman filter along the simulator\'s truth trajectory of '
         '`robot_skid` (400 s, 30 Hz IMU, 2.5 Hz position-only receiver), every simulated '
         'error a state, every noise the simulator\'s; vibration as the simulator makes it '
-        '(differences of a 0.05-s Gauss-Markov angle and velocity: states). Attitude prior A: '
-        '2 deg tilt, 10 deg heading. Cells: tilt sigma E / N (arcmin), heading sigma (deg). '
-        '"no jitter": the tilt sigma without the vibration\'s instantaneous angle jitter '
-        '(what an estimate averaged over a fraction of a second would have).', '',
+        '(differences of a 0.05-s Gauss-Markov angle and velocity: states). Attitude prior: '
+        '2 deg tilt, 10 deg heading (1 sigma). Cells: tilt sigma E / N (arcmin), heading '
+        'sigma (deg). "no jitter": the tilt sigma without the vibration\'s instantaneous '
+        'angle jitter (6.08\' per axis).', '',
         'Variants: ' + '; '.join(f'`{v}` {VARIANTS[v]}' for v in variants) + '.', '']
     for grade in grades:
         sc = cell(grade)
@@ -513,25 +695,12 @@ def page(args, cmd, grades, seeds, variants, results, drawn, elapsed):
                   f'(horizontal accelerometer error / g: bias'
                   + (' and misalignment under gravity' if np.any(sc.imu.accel_misalign_ppm)
                      else '') + f'): {_am(lim)}\'.', '']
-        ref = results[(grade, seeds[0], variants[0])]
-        same = all(np.array_equal(results[(grade, s, v)].phi, results[(grade, seeds[0], v)].phi)
-                   for s in seeds for v in variants)
+        rows, same = _variant_table(grade, seeds, variants, results, b)
         lines += [f'Seeds {", ".join(map(str, seeds))}: the covariances are '
                   + ('bit-identical (P depends on the trajectory only); the table is seed '
-                     f'{seeds[0]}\'s.' if same else 'NOT identical: per-seed tables below.'),
-                  '']
-        lines += [f'| variant | {head} | no jitter, 400 s | within bound at 400 s |',
-                  '|---|' + '---|' * (len(REPORT_S) + 2)]
-        for s in (seeds[:1] if same else seeds):
-            for v in variants:
-                r = results[(grade, s, v)]
-                cells = [f'{_am(p[0])} / {_am(p[1])}, {p[2] / DEG:.2f}' for p in r.phi]
-                worst = max(r.phi[-1, 0], r.phi[-1, 1])
-                name = v if same else f'{v} ({s})'
-                lines.append(f'| {name} | ' + ' | '.join(cells)
-                             + f' | {_am(r.phi_slow[-1, 0])} / {_am(r.phi_slow[-1, 1])} | '
-                             + ('yes' if worst <= b else 'no') + f' ({_am(worst)}\' vs '
-                             f'{_am(b)}\') |')
+                     f'{seeds[0]}\'s.' if same else 'NOT identical: a table row per seed.'),
+                  ''] + rows
+        ref = results[(grade, seeds[0], variants[0])]
         lines += ['', f'Accelerometer bias sigma at 400 s (body x / y / z, mg), `{variants[0]}`: '
                   + ' / '.join(f'{x / (1e-3 * 9.80665):.2f}' for x in ref.accel_bias[-1])
                   + f' (prior {float(np.max(np.abs(sc.imu.accel_bias_ug))) / 1000:.1f}).', '',
@@ -539,6 +708,10 @@ def page(args, cmd, grades, seeds, variants, results, drawn, elapsed):
                   'x / y, mg): ' + '; '.join(
                       f'{s}: {drawn[(grade, s)][0]:+.2f} / {drawn[(grade, s)][1]:+.2f}'
                       for s in seeds) + '.', '']
+        if checks:
+            lines += [f'Filter check ({grade}, `base`): the model run as a closed-loop filter '
+                      'on each seed\'s simulated data, initial navigation errors drawn from '
+                      'the prior.', ''] + _check_table(grade, seeds, checks) + ['']
     return lines
 
 
