@@ -37,7 +37,7 @@ The simulator adds to sample ``k``'s angle increment ``g_k x_k - g_{k-1} x_{k-1}
 RMS is ``A dt``) and ``g`` the speed gain (1 above 0.5 m/s: always, here). Likewise the
 velocity increment with ``A`` = 1.5 m/s^2. A white noise with the same per-sample RMS would
 have the density ``A^2 dt``: sqrt = 0.548 deg/sqrt(s) = 32.9 deg/sqrt(h) for the gyro,
-0.274 m/s/sqrt(s) = 27.9 mg/sqrt(Hz) for the accelerometer, 11 and 78 times the plain MEMS
+0.274 m/s/sqrt(s) = 27.9 mg/sqrt(Hz) for the accelerometer, 11 and 80 times the plain MEMS
 grade's ARW and VRW. But the increments are *differences*: their sum over any span is
 ``g_k x_k - g_0 x_0``, bounded by ``s_x`` = 6.08' (angle) and 5.07 cm/s (velocity), so their
 density at frequencies below ``1 / tau`` is zero: as a white noise the vibration would be a
