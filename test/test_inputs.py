@@ -8,7 +8,7 @@ from sins_align_ros.align.inputs.gnss_input import GnssInput
 from sins_align_ros.align.inputs.imu_input import OK, RATE_WINDOW, RESET, SKIP, START, ImuInput
 from sins_align_ros.align.engines.moving import MovingBaseAlignment
 from sins_align_ros.align.pipeline import AlignmentPipeline
-from sins_align_ros.align.session import feed_arrays
+from sins_align_ros.eval.feed import feed_arrays
 from sins_align_ros.nav.frames import attitude_error, euler_to_dcm, quat_to_dcm
 from sins_align_ros.sim.faults import MessageStream, inject
 from sins_align_ros.sim.presets import scenario

@@ -8,7 +8,7 @@ import pytest
 from conftest import shared_data
 from sins_align_ros.align.engines.moving import MovingBaseAlignment, true_specific_force
 from sins_align_ros.align.pipeline import AlignmentPipeline
-from sins_align_ros.align.session import feed_arrays
+from sins_align_ros.eval.feed import feed_arrays
 from sins_align_ros.filters.adaptive import SageHusa
 from sins_align_ros.filters.asckf import ASCKF
 from sins_align_ros.filters.cubature import CubatureUpdate, batched

@@ -7,7 +7,7 @@ import pytest
 
 from sins_align_ros.align.engines.navigation import IntegratedNavigation, gyro_tau, model_noise
 from sins_align_ros.align.pipeline import AlignmentPipeline
-from sins_align_ros.align.session import feed_arrays
+from sins_align_ros.eval.feed import feed_arrays
 from sins_align_ros.filters import kf as lkf
 from sins_align_ros.filters.chi2 import chi2_quantile
 from sins_align_ros.filters.cubature import batched

@@ -213,15 +213,15 @@ def test_rotated_imu_gives_the_vehicle_attitude_in_base_link(ros_context):
 
 def test_moving_base_diagnostics_carry_the_asckf_internals(ros_context):
     """fine_filter asckf: /diagnostics has fading factors, Q/R diagonals, NIS, test count."""
-    from sins_align_ros.align.session import feed_arrays
+    from sins_align_ros.eval.feed import feed_arrays
     from sins_align_ros.sim.presets import scenario
     from sins_align_ros.sim.scenario import ScenarioStream
     node = AlignmentNode(context=ros_context, parameter_overrides=[
         Parameter('fine_filter', value='asckf'), Parameter('diagnostic_period', value=0.1),
         Parameter('gnss_pos_sigma_m', value=0.2)])
     b = ScenarioStream(scenario('seed000_case1', duration=80.0), seed=3).next_block(8000)
-    node.pipeline.start_clock(0.0)
-    feed_arrays(node.pipeline, b.imu, b.gnss)
+    node.session.start_clock(0.0)
+    feed_arrays(node.session, b.imu, b.gnss)
     got = []
     probe = rclpy.create_node('diag_probe', context=ros_context)
     probe.create_subscription(DiagnosticArray, '/diagnostics', got.append, 10)

@@ -4,7 +4,7 @@ import pytest
 
 from sins_align_ros.align.output import Output
 from sins_align_ros.align.pipeline import ALIGNED, COARSE, FINE, AlignmentPipeline
-from sins_align_ros.align.session import feed_arrays
+from sins_align_ros.eval.feed import feed_arrays
 from sins_align_ros.eval.limits import scenario_limits
 from sins_align_ros.nav.frames import (attitude_error, euler_error, euler_to_dcm, quat_to_dcm,
                                        rotvec_to_dcm)

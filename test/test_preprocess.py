@@ -91,7 +91,7 @@ def test_denoising_reduces_the_noise_without_lag_and_keeps_the_motion():
 
 def test_pipeline_with_preprocessing_outputs_every_sample_at_its_stamp():
     from sins_align_ros.align.pipeline import AlignmentPipeline
-    from sins_align_ros.align.session import feed_arrays
+    from sins_align_ros.eval.feed import feed_arrays
     from sins_align_ros.sim.presets import alignment_params
     from sins_align_ros.units import DEG
     sc = scenario('seed004_high', duration=150.0)

@@ -191,7 +191,7 @@ def test_pipeline_aligns_the_usv_in_severe_sea_with_outliers(fine_filter):
     the final attitude is within a few sigma of the truth and the diagnostics carry the
     VB R estimate, the outlier counts and (VBCH) gamma."""
     from sins_align_ros.align.pipeline import AlignmentPipeline
-    from sins_align_ros.align.session import feed_arrays
+    from sins_align_ros.eval.feed import feed_arrays
     from sins_align_ros.nav.frames import attitude_error, quat_to_dcm
     from sins_align_ros.sim.presets import alignment_params, scenario
     from sins_align_ros.sim.scenario import ScenarioStream

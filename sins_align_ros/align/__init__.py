@@ -11,7 +11,6 @@ import importlib
 #: public name -> the module of align that defines it
 _EXPORTS = {
     'AlignmentSession': 'session',
-    'feed_arrays': 'session',
     'AlignmentPipeline': 'pipeline',
     'PHASES': 'pipeline',
     'Output': 'output',

@@ -1,8 +1,8 @@
 """One alignment session: the only place that turns sensor input into pipeline calls.
 
 The alignment node (one message at a time), the replay tool (a recording), the
-benchmarks and the tests all drive an :class:`AlignmentSession`, so the rules
-below are written once:
+benchmarks and the tests (``eval.feed.feed_arrays``) all drive an :class:`AlignmentSession`,
+so the rules below are written once:
 
 * every IMU sample passes :class:`~.imu_input.ImuInput` (bad values, stamps,
   gaps, bridges); its first sample starts the pipeline's clock (START), a gap or
@@ -19,6 +19,14 @@ samples are fed to the pipeline in blocks of that size, and the buffer is fed
 before anything that must happen between two samples: a GNSS message, a bridge,
 a restart). Either way every call returns an :class:`~.output.Output` (possibly
 empty) with the rows it produced.
+
+IMU increments that are already integrated (a simulation, a PSINS log) go in through
+:meth:`AlignmentSession.increments` as they are, after :meth:`~AlignmentSession.start_clock`:
+they bypass the rate checks, since a round trip through rates would change their floats.
+
+What the node shows of a session it reads through the read-outs at the end of the class
+(the phase, the status and notes, the input counts, the mounting rotation,
+:meth:`~AlignmentSession.navigation`), never through the pipeline's parts.
 """
 import math
 from dataclasses import dataclass
@@ -30,7 +38,6 @@ from .inputs.gnss_input import GnssInput
 from .inputs.imu_input import OK, RESET, SKIP, ImuInput
 from .output import Output
 from .pipeline import AlignmentPipeline
-from ..units import DEG
 
 
 @dataclass
@@ -44,6 +51,21 @@ class ImuVerdict:
         return self.action == OK
 
 
+@dataclass(frozen=True)
+class NavReadout:
+    """The navigation filter's figures that ``~/odom`` carries beside the output rows.
+
+    ``P_nav`` (9, 9): position, velocity and misalignment error covariance (None: the
+    engine does not navigate); ``gyro_bias`` (3,) rad/s: the filter's current estimate;
+    ``rate_var``: the gyro white-noise variance per sample, (rad/s)^2 (ARW^2 over the
+    nominal IMU interval; 0.01 s until the input checks know that interval).
+    """
+
+    P_nav: object
+    gyro_bias: object
+    rate_var: float
+
+
 class AlignmentSession:
     """Input checks + pipeline; see the module docstring.
 
@@ -53,14 +75,19 @@ class AlignmentSession:
         Alignment parameters by name (validated; missing ones take defaults).
     block : int
         1: feed each accepted IMU sample at once; N > 1: buffer N samples.
+    pipeline : AlignmentPipeline or None
+        Drive this pipeline, one the caller built (and inspects), instead of a new one;
+        its parameters are the session's (``values`` is then ignored).
     """
 
-    def __init__(self, values=None, block=1):
+    def __init__(self, values=None, block=1, pipeline=None):
+        if pipeline is not None:
+            values = pipeline.configured
         self.values = prm.validate(values or {})
         full = prm.defaults()
         full.update(self.values)
         self.block = int(block)
-        self.pipeline = AlignmentPipeline(self.values)
+        self.pipeline = AlignmentPipeline(self.values) if pipeline is None else pipeline
         self.imu_input = ImuInput.from_params(full)
         self.gnss_input = GnssInput()
         #: restarts since the last :meth:`pop_events`: ``(level, text)``
@@ -197,6 +224,25 @@ class AlignmentSession:
         self.pipeline.heading_fix(t, yaw, var)
         return out
 
+    def start_clock(self, t0):
+        """Set the stamp (s) the first of :meth:`increments` starts from.
+
+        The rate entries (:meth:`imu`, :meth:`imu_block`) start the clock at their first
+        sample themselves.
+        """
+        self.pipeline.start_clock(t0)
+
+    def increments(self, t, dtheta, dv):
+        """Take IMU increments as they are: ``t`` (N,) s, ``dtheta`` (N, 3) rad, ``dv`` (N, 3) m/s.
+
+        For data that come integrated (a simulation, a PSINS log): they bypass the rate
+        checks of :class:`~.imu_input.ImuInput` (which take rates; a round trip through
+        rates would change the floats). Returns the rows produced.
+        """
+        before = self._drain()
+        out = self.pipeline.feed(t, dtheta, dv)
+        return out if not len(before) else Output.concat([before, out])
+
     def finish(self):
         """Process what is buffered and what the pre-processing stage holds (end of input)."""
         return Output.concat([self._drain(), self.pipeline.flush()])
@@ -221,44 +267,51 @@ class AlignmentSession:
         self._n_buf = 0
         return self.pipeline.feed(t, dtheta, dv)
 
-    # -- read-outs ------------------------------------------------------------------------
+    # -- read-outs: what the node shows of the session -----------------------------------
+    @property
+    def phase(self):
+        """One of ``PHASES``: the current pipeline's phase."""
+        return self.pipeline.phase
+
+    def status(self):
+        """Return the pipeline's key figures for diagnostics (plain Python types)."""
+        return self.pipeline.status()
+
+    @property
+    def warnings(self):
+        """The pipeline's notes so far: its own list (a restart's pipeline starts a new one)."""
+        return self.pipeline.warnings
+
+    def conditions(self):
+        """Return the new degraded conditions: ``[(level, text)]``, 1 warn, 2 error."""
+        return self.pipeline.conditions()
+
+    @property
+    def C_s_v(self):
+        """The IMU mounting rotation (3, 3), sensor to vehicle frame; None when not told."""
+        return self.pipeline.install.C_s_v
+
+    @property
+    def imu_accepted(self):
+        """IMU samples the input checks accepted since the session started."""
+        return self.imu_input.counts['accepted']
+
+    @property
+    def imu_rejected(self):
+        """IMU samples the input checks (or the caller, :meth:`reject_imu`) skipped."""
+        return self.imu_input.rejected
+
+    @property
+    def gnss_rejected(self):
+        """GNSS messages (fixes, velocities, headings) the input checks skipped."""
+        return self.gnss_input.rejected
+
     def input_counts(self):
         """Input fault and acceptance counts by source, for diagnostics and summaries."""
         return dict(self.imu_input.counts), dict(self.gnss_input.counts)
 
-
-def feed_arrays(p, imu, gnss, use_velocity=True, block=100, callback=None, heading=None):
-    """Feed whole simulated or recorded increments to pipeline ``p`` in time order.
-
-    ``imu`` has ``t``, ``dtheta``, ``dv`` (N, ...) (increments: they bypass the input
-    checks of :class:`AlignmentSession`, which take rates); ``gnss`` has ``t``,
-    ``lat``, ``lon`` (rad), ``h``, ``v_n`` (M, 3), ``fix`` (M,) bool and
-    ``pos_cov``/``vel_cov`` (ENU variances), or is None. GNSS epochs are given before
-    the IMU block that passes their stamps, as a live node would receive them.
-    ``callback(p)``, if given, is called after each block (e.g. to record filter
-    internals). ``heading``: an external heading's ``t``, ``yaw`` (rad, the source's),
-    ``var`` (M,) (``sim.gnss.heading_measurements``), given the same way, or None.
-    Returns the :class:`~.output.Output`.
-    """
-    outs, gi, hi = [], 0, 0
-    n_h = 0 if heading is None else len(heading.t)
-    n = len(imu.t)
-    m = 0 if gnss is None else len(gnss.t)
-    for i in range(0, n, block):
-        j = min(n, i + block)
-        while gi < m and gnss.t[gi] <= imu.t[j - 1] + 1e-9:
-            if gnss.fix[gi]:
-                p.position_fix(gnss.t[gi], gnss.lat[gi] / DEG, gnss.lon[gi] / DEG, gnss.h[gi],
-                               pos_var=np.asarray(gnss.pos_cov)[:2])
-                if use_velocity and gnss.v_n is not None:      # None: a position-only receiver
-                    p.velocity_fix(gnss.t[gi], gnss.v_n[gi],
-                                   vel_var=np.asarray(gnss.vel_cov)[:2])
-            gi += 1
-        while hi < n_h and heading.t[hi] <= imu.t[j - 1] + 1e-9:
-            p.heading_fix(heading.t[hi], heading.yaw[hi], heading.var[hi])
-            hi += 1
-        outs.append(p.feed(imu.t[i:j], imu.dtheta[i:j], imu.dv[i:j]))
-        if callback is not None:
-            callback(p)
-    outs.append(p.flush())
-    return Output.concat(outs)
+    def navigation(self):
+        """Return the navigation filter's :class:`NavReadout` (rows with ``nav`` only)."""
+        pipe = self.pipeline
+        dt = self.imu_input.dt_nominal or 0.01
+        return NavReadout(pipe.nav_cov(), pipe.engine.gyro_bias, pipe.noise.gyro_arw ** 2 / dt)

@@ -19,10 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..align import AlignmentSession, Output
 from ..align import params as prm
-from ..align.output import Output
-from ..align.pipeline import AlignmentPipeline
-from ..align.session import AlignmentSession
 from ..io.bag import BagError, read_bag
 from ..io.psins import PsinsFormatError, read_psins
 from ..io.report import plot_report, truth_euler_at
@@ -78,7 +76,11 @@ def load_parameters(params_file, sets, log=lambda m: None):
 
 
 def replay_psins(path, values, log, duration=None):
-    """Run a PSINS log; returns (Output, pipeline, None)."""
+    """Run a PSINS log through an :class:`AlignmentSession`; returns (Output, pipeline, None).
+
+    The log holds increments: they go in as they are (``AlignmentSession.increments``),
+    the clock starting at the header's stamp.
+    """
     rec = read_psins(path)
     v = dict(values)
     if prm.is_unset(v.get('initial_latitude_deg', float('nan'))):
@@ -87,11 +89,11 @@ def replay_psins(path, values, log, duration=None):
                  initial_height_m=float(rec.pos0[2]))
         log(f'position from the PSINS header: {v["initial_latitude_deg"]:.6f} deg, '
             f'{v["initial_longitude_deg"]:.6f} deg, {v["initial_height_m"]:.1f} m')
-    pipe = AlignmentPipeline(v)
-    pipe.start_clock(rec.t0)
+    session = AlignmentSession(v)
+    session.start_clock(rec.t0)
     n = len(rec.t) if duration is None else int(np.searchsorted(rec.t, rec.t0 + duration + 1e-9))
-    out = pipe.feed(rec.t[:n], rec.dtheta[:n], rec.dv[:n])
-    return Output.concat([out, pipe.flush()]), pipe, None
+    out = session.increments(rec.t[:n], rec.dtheta[:n], rec.dv[:n])
+    return Output.concat([out, session.finish()]), session.pipeline, None
 
 
 def replay_bag(path, values, args, log, with_truth=True):

@@ -6,7 +6,9 @@ ROS-free (no rclpy): the benchmarks in ``bench/`` and the tests use it.
   whole-run simulation;
 - :mod:`.cache`: the simulation cache on disk (one simulation per scenario and seed,
   shared by the runs and processes of a benchmark);
-- :mod:`.run`: one data set through :class:`~sins_align_ros.align.pipeline.AlignmentPipeline`
+- :mod:`.feed`: whole arrays of increments and GNSS epochs through an alignment session
+  in time order (:func:`~.feed.feed_arrays`);
+- :mod:`.run`: one data set through an :class:`~sins_align_ros.align.session.AlignmentSession`
   (:func:`~.run.run_pipeline`, :func:`~.run.run_scenario`): the output with the truth
   at its rows and the final errors; replay speed;
 - :mod:`.errors`: errors against truth (attitude, final error and NEES, navigation RMSE);

@@ -2,8 +2,8 @@
 
 The recipe every benchmark and accuracy test follows: simulate a named scenario for
 a seed (or take a recording), feed it to an
-:class:`~sins_align_ros.align.pipeline.AlignmentPipeline` with
-:func:`~sins_align_ros.align.session.feed_arrays` (GNSS epochs before the IMU block
+:class:`~sins_align_ros.align.session.AlignmentSession` with
+:func:`~.feed.feed_arrays` (the IMU as increments, GNSS epochs before the IMU block
 that passes their stamps), and compare the output rows with the truth.
 """
 import time
@@ -13,13 +13,12 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..align.output import Output
-from ..align.pipeline import AlignmentPipeline
-from ..align.session import feed_arrays
+from ..align import AlignmentPipeline, AlignmentSession, Output
 from ..sim.gnss import heading_measurements
 from ..sim.presets import alignment_params
 from .cache import simulate_cached
 from .errors import attitude_errors, final_error, truth_rows
+from .feed import feed_arrays
 from .scenarios import named, simulate
 
 
@@ -85,29 +84,29 @@ class Run:
 
 def run_pipeline(params, data, use_velocity=True, block=100, callback=None, t0=0.0,
                  heading=None):
-    """Feed ``data`` to a new ``AlignmentPipeline(params)`` whose clock starts at ``t0``.
+    """Feed ``data`` to a new ``AlignmentSession(params)`` whose clock starts at ``t0``.
 
     ``data``: ``imu`` (t, dtheta, dv, ...) and ``gnss`` (epochs or None), as a
     simulation or :func:`~.recordings.fog_data`. ``use_velocity``, ``block`` and
-    ``callback`` go to :func:`~sins_align_ros.align.session.feed_arrays`; ``block``
-    None feeds the IMU in one call (no GNSS allowed); ``heading``: an external heading's
-    epochs (``feed_arrays``). Returns a :class:`Run`.
+    ``callback`` go to :func:`~.feed.feed_arrays`; ``block`` None feeds the IMU in one
+    call (no GNSS allowed); ``heading``: an external heading's epochs (``feed_arrays``).
+    Returns a :class:`Run` (its ``pipeline``: the session's at the end).
     """
-    p = AlignmentPipeline(params)
-    p.start_clock(t0)
+    session = AlignmentSession(params)
+    session.start_clock(t0)
     imu = data.imu
     w0 = time.perf_counter()
     if block is None:
         if data.gnss is not None or heading is not None:
             raise ValueError('block=None feeds the IMU alone: give data without GNSS')
-        out = p.feed(imu.t, imu.dtheta, imu.dv)
-        rest = p.flush()
+        out = session.increments(imu.t, imu.dtheta, imu.dv)
+        rest = session.finish()
         if len(rest.t):
             out = Output.concat([out, rest])
     else:
-        out = feed_arrays(p, imu, data.gnss, use_velocity=use_velocity, block=block,
+        out = feed_arrays(session, imu, data.gnss, use_velocity=use_velocity, block=block,
                           callback=callback, heading=heading)
-    return Run(out, data, p, time.perf_counter() - w0)
+    return Run(out, data, session.pipeline, time.perf_counter() - w0)
 
 
 def run_scenario(sc, seed, fine_filter, duration=None, cached=False, use_velocity=True,

@@ -45,7 +45,7 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 from rclpy.timer import Timer
 
-from .alignment_node import PARAMS, AlignmentShell
+from .alignment_node import AlignmentShell
 from .runner import make_executor, run
 
 SUCCESS = TransitionCallbackReturn.SUCCESS
@@ -92,10 +92,10 @@ class AlignmentLifecycleNode(AlignmentShell, LifecycleNode):
     # -- transitions -------------------------------------------------------------------------
     def on_configure(self, state):
         """Build the session from the parameters; create the publishers, ~/reset, timers."""
-        bad = [err for err in (p.check(self.p[p.name]) for p in PARAMS) if err]
+        bad = self.params.refused()
         try:
             if bad:
-                raise ValueError('; '.join(bad))
+                raise ValueError(bad)
             self._start_session()
         except ValueError as exc:
             self.session = None

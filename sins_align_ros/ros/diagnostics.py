@@ -175,14 +175,54 @@ def input_values(session, counts, odom):
     values = {f'imu_{k}': v for k, v in imu_counts.items()}
     values.update({f'gnss_input_{k}': v for k, v in gnss_counts.items()})
     values.update({f'{k}_count': v for k, v in counts.items()})
-    values['imu_rejected_count'] = session.imu_input.rejected
+    values['imu_rejected_count'] = session.imu_rejected
     if odom.origin is not None:
         lat, lon, h = odom.origin          # full precision (1e-9 deg ~ 0.1 mm)
         values.update({'odom_origin_lat_deg': f'{np.degrees(lat):.9f}',
                        'odom_origin_lon_deg': f'{np.degrees(lon):.9f}',
                        'odom_origin_h_m': f'{h:.3f}'})
-    values['gnss_rejected_count'] = session.gnss_input.rejected
+    values['gnss_rejected_count'] = session.gnss_rejected
     return values
+
+
+class PeriodReport:
+    """What the node gathers between two /diagnostics reports and says in the next.
+
+    ``faults`` the input faults (:class:`FaultLog`), ``notes`` the restarts and pipeline
+    notes to show (:class:`RecentNotes`), ``last_restart`` the text of the last restart,
+    ``imu`` [received, usable] IMU messages of the period.
+    """
+
+    def __init__(self, logger):
+        self.faults = FaultLog(logger)
+        self.notes = RecentNotes()
+        self.last_restart = ''
+        self.imu = [0, 0]
+
+    def restarted(self, text):
+        """Take a restart of the session (its log text)."""
+        self.notes.add([text])
+        self.last_restart = text
+
+    def status(self, name, hardware_id, session, s, state, p, imu_age, errors, counts, odom):
+        """Return the period's DiagnosticStatus (:func:`alignment_status`) and start a new one.
+
+        ``session`` the alignment session (its read-outs), ``s`` its status, ``state`` the
+        typed state published, ``p`` the node's parameter values, ``imu_age`` seconds since
+        the last IMU message (None before the first), ``errors`` the node's
+        :class:`CallbackErrors`, ``counts`` its message counts, ``odom`` the ``~/odom``
+        origin (:class:`~.odometry.OdometryFrame`).
+        """
+        self.notes.read(session.warnings)
+        values = input_values(session, counts, odom)
+        values.update(callback_error_count=errors.count, notes='; '.join(session.warnings),
+                      last_restart=self.last_restart)
+        st = alignment_status(name, hardware_id, s, state, p['diagnostic_period'],
+                              p['coarse_duration'], imu_age, self.imu, self.faults.lines(),
+                              errors.lines() + session.conditions(), self.notes.current(),
+                              values)
+        self.imu = [0, 0]
+        return st
 
 
 class CallbackErrors:

@@ -200,7 +200,7 @@ def run_case(case, workdir, data):
     out = workdir / f'{case.name}.csv'
     if case.source == 'fog':
         from sins_align_ros.align.pipeline import AlignmentPipeline
-        from sins_align_ros.align.session import feed_arrays
+        from sins_align_ros.eval.feed import feed_arrays
         from sins_align_ros.io.fog import read_fog_mems
         from sins_align_ros.io.results import write_csv
         rec = read_fog_mems(data('fog_mems_imu.csv'), data('fog_mems_reference.csv'))
