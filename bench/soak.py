@@ -129,8 +129,9 @@ def main():
     base = base[0] if base else rss[0][1]
     after = [r for m, r, _ in rss if m >= args.warmup]
     growth = (max(after) - base) / base * 100.0
-    counts = {f'imu {k}': v for k, v in node.input.counts.items() if k != 'accepted'}
-    counts.update({f'gnss {k}': v for k, v in node.gnss.counts.items()})
+    imu_counts, gnss_counts = node.session.input_counts()
+    counts = {f'imu {k}': v for k, v in imu_counts.items() if k != 'accepted'}
+    counts.update({f'gnss {k}': v for k, v in gnss_counts.items()})
     st = p.status()
     ok_att = bool(np.all(np.abs(err) <= 3.0 * sig + np.array([0.2, 0.2, 3.0]) * ARCMIN))
     lines = [

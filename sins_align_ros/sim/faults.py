@@ -105,8 +105,8 @@ class MessageStream:
     def events(self, t0=-np.inf, t1=np.inf):
         """``(kind, index)`` of the messages published in [t0, t1), in publication order.
 
-        At equal publication times GNSS comes first, as :func:`~sins_align_ros.align.
-        pipeline.feed_arrays` gives it.
+        At equal publication times GNSS comes first, as
+        :func:`~sins_align_ros.eval.feed.feed_arrays` gives it.
         """
         ti = self.imu['t_pub']
         tg = self.gnss['t_pub']
