@@ -20,7 +20,7 @@ of a block take the covariance after its epoch, the aided engine's are cut at ev
 epoch), so the paths stay two, each typed by its protocol.
 
 Frames: body FLU, navigation ENU; attitudes ``C_b_n`` (3, 3) body -> ENU; misalignment
-``phi`` (3,) rad about E, N, U, so ``C_true = exp([phi x]) C_b_n``.
+covariances about the E, N, U axes (rad^2), as the published attitude's (docs/design.md).
 """
 from typing import Any, Optional, Protocol, Tuple, runtime_checkable
 
@@ -65,7 +65,10 @@ class Engine(Protocol):
         """
 
     def widen(self, var_phi: float, var_v: float) -> None:
-        """Add ``var_phi`` (rad^2) to each misalignment variance, ``var_v`` to each velocity's."""
+        """Add ``var_phi`` (rad^2) to each misalignment variance, ``var_v`` to each velocity's.
+
+        ``var_v`` in (m/s)^2; a bridge over a gap in the input, or a monitor's remedy.
+        """
 
     def update_heading(self, fix: Any, t_now: float, w_up: float = 0.0) -> str:
         """Take an external heading ``fix`` (:class:`~..inputs.heading.HeadingFix`) at ``t_now``.
@@ -118,11 +121,10 @@ class StillEngine(Engine, Protocol):
 class AidedEngine(Engine, Protocol):
     """A GNSS-aided engine: stepped by the stage, GNSS epochs through :meth:`update`."""
 
-    #: misalignment, velocity-error and gyro-drift slices of the error state (``i_eps``
-    #: None: no drift states)
+    #: misalignment and velocity-error slices of the error state (rows the motion check
+    #: widens the process noise of)
     i_phi: slice
     i_v: slice
-    i_eps: Optional[slice]
     #: predictions run without a GNSS measurement so far (an outage: the sigma grew)
     n_predict_only: int
     #: the last GNSS epoch: its NIS, its degrees of freedom (measurement rows), its
