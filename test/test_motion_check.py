@@ -15,6 +15,7 @@ from sins_align_ros.align.stages.grade_check import (ACCEL_SCALE_BY_GYRO_NOISE,
                                                      SCALE_BY_GYRO_NOISE)
 from sins_align_ros.align.stages.motion_check import TURN_RATE, WINDOW_S, MotionCheck
 from sins_align_ros.align.stages.noise_estimates import NOISE_RATIO, difference_density
+from sins_align_ros.align.engines.process_noise import ProcessNoise
 from sins_align_ros.align.engines.rotation_error import COHERENCE_FACTOR
 from sins_align_ros.eval.integrity import run_integrity
 from sins_align_ros.eval.run import run_scenario
@@ -26,7 +27,7 @@ from sins_align_ros.units import DPSH, UG
 DT = 0.01
 
 
-class Engine:
+class Engine(ProcessNoise):
     """The least of an aided engine the check uses: 13 noise densities, the slices, a recorder."""
 
     i_phi, i_v = slice(4, 7), slice(0, 2)

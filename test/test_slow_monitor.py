@@ -11,6 +11,7 @@ import math
 import numpy as np
 import pytest
 
+from sins_align_ros.align.engines.process_noise import ProcessNoise
 from sins_align_ros.align.stages import slow_monitor
 from sins_align_ros.align.inputs.gnss_fix import GnssFix
 from sins_align_ros.align.stages.slow_monitor import (MAX_LEG_S, MAX_YAW_RATE, RATE_SPAN,
@@ -246,7 +247,7 @@ def test_a_shaking_yaw_still_makes_legs():
 
 
 def test_the_drift_noise_raised_for_good():
-    class Eng:
+    class Eng(ProcessNoise):
         i_eps = slice(3, 6)
 
         def __init__(self):
@@ -254,7 +255,7 @@ def test_the_drift_noise_raised_for_good():
             self._Qc0 = self.Qc.copy()
             self._held = self._Qc0 <= 0.0
     eng = Eng()
-    slow_monitor.raise_drift_noise(eng, 1e-9)
+    eng.raise_drift_noise(1e-9)
     assert np.array_equal(eng.Qc, [1.0, 1.0, 1.0, 1e-9, 2e-9, 1e-9, 0.0])
     assert np.array_equal(eng._Qc0, eng.Qc)
     assert np.array_equal(eng._held, [False] * 6 + [True])

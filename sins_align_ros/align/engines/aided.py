@@ -17,9 +17,13 @@ predicts without an update, so an outage only widens the covariance.
 ``_set_process_noise``, ``_interval_ended``). Its mixins hold the other jobs: what is
 done to the prior before the first epoch (:class:`~.prior_shaping.PriorShaping`), the
 consistency monitor's remedies (:class:`~.consistency_remedies.ConsistencyRemedies`),
-which horizontal force the model may use (:class:`~.force.ForceModel`), the external
-heading's epochs (:class:`~.heading_update.ExternalHeading`) and each GNSS epoch's
-measurement noise (:class:`~.epoch_noise.EpochNoise`).
+each interval's process noise and the other monitors' widening of it
+(:class:`~.process_noise.ProcessNoise`), which horizontal force the model may use
+(:class:`~.force.ForceModel`), the external heading's epochs
+(:class:`~.heading_update.ExternalHeading`), each GNSS epoch's measurement noise
+(:class:`~.epoch_noise.EpochNoise`) and offline runs over arrays
+(:class:`~.array_feed.ArrayFeed`). What the stages may use of it is declared in
+:class:`~.base.AidedEngine`.
 """
 import math
 from dataclasses import dataclass
@@ -31,14 +35,15 @@ from ... import compiled
 from ...nav import kernels
 from ...nav.mechanization import MechanizationOptions, Strapdown
 from ...units import DPH
+from .array_feed import ArrayFeed
 from .epoch_noise import EpochNoise
 from .consistency_remedies import ConsistencyRemedies
 from .force import ForceModel
 from .force_error import ForceError
-from ..inputs.gnss_fix import GnssFix
 from .gnss_gate import FilterDiverged
 from .heading_update import ExternalHeading
 from .prior_shaping import HEADING_PRIOR_MAX, PriorShaping
+from .process_noise import ProcessNoise
 from .rotation_error import RotationError
 
 #: the longest interval the error model is propagated without a measurement, s
@@ -110,9 +115,11 @@ class Block:
     reason: str = None
 
 
-class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHeading,
-                      EpochNoise, RotationError, ForceError):
+class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ProcessNoise, ForceModel,
+                      ExternalHeading, EpochNoise, RotationError, ForceError, ArrayFeed):
     """Mechanization + error-state filter at GNSS epochs; see the module docstring.
+
+    It satisfies :class:`~.base.AidedEngine`, the contract the fine stage steps it by.
 
     Parameters
     ----------
@@ -258,34 +265,6 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
         """Sensor compensation before the mechanization (none by default)."""
         return dtheta, dv
 
-    def _set_process_noise(self):
-        """Set Q of the interval since the last epoch; return what was lent, or None.
-
-        ``diag(Qc) T`` plus a dropped force's velocity noise
-        (:meth:`~.force.ForceModel._force_noise`) and the rotation-proportional noise of the
-        gyro scale factors and misalignment (:mod:`.rotation_error`) and the accelerometer's
-        force-proportional velocity noise (:mod:`.force_error`). A filter that estimates
-        Q (``own_Q``) keeps its own; the parts beyond ``diag(Qc) T`` are lent to it for the
-        step (``kf.Q_lent``: the ASCKF's, the one filter that estimates Q; never estimated
-        into its Q) and taken back after it (:meth:`_return_process_noise`).
-        """
-        T = max(self.sums.T, 1e-3)
-        E = self._force_noise(T)
-        for E_more in (self._rotation_noise(T), self._force_error_noise(T)):
-            if E_more is not None:
-                E = E_more if E is None else E + E_more
-        if not self.own_Q:
-            self.kf.Q = np.diag(self.Qc * T) + (0.0 if E is None else E)
-            return None
-        if E is not None:
-            self.kf.Q_lent = E      # used with Q, never estimated into it
-        return E
-
-    def _return_process_noise(self, lent):
-        """Take back the process noise :meth:`_set_process_noise` lent (None: nothing)."""
-        if lent is not None:
-            self.kf.Q_lent = None
-
     def _restart_interval(self):
         self._interval_ended(self.sums.T)
         self.sums.restart()
@@ -351,32 +330,27 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ForceModel, ExternalHea
         self._feedback(fix)
         return upd
 
-    def feed(self, imu, gnss, t0):
-        """Run samples 1..N-1 of ``imu`` (``t``, ``dtheta``, ``dv``) from stamp ``t0 = imu.t[0]``.
+    # -- the contract's read-outs (base.AidedEngine) ---------------------------------------
+    @property
+    def estimates_R(self):
+        """Tell whether the filter estimates the measurement noise itself (variational Bayes)."""
+        return bool(getattr(self.kf, 'estimates_R', False))
 
-        GNSS epochs of ``gnss`` (``t``, ``lat``, ``lon``, ``h``; rad, rad, m; with
-        ``v_n`` and ``fix`` when the arrays have them) after ``t0`` are applied at the
-        first sample at or past their stamp. Raises :class:`FilterDiverged` as
-        :meth:`update` does.
-        """
-        gi, t_prev = 0, t0
-        for k in range(1, len(imu.t)):
-            t = imu.t[k]
-            self.step_imu(imu.dtheta[k], imu.dv[k], t - t_prev)
-            t_prev = t
-            while gi < len(gnss.t) and gnss.t[gi] <= t + 1e-9:
-                fix = self._gnss_fix(gnss, gi) if gnss.t[gi] > t0 else None
-                if fix is not None:
-                    self.update(fix, t)
-                gi += 1
+    @property
+    def rejected(self):
+        """Tell whether the filter's innovation gate rejected the last GNSS epoch."""
+        return bool(self.kf.rejected)
 
-    @staticmethod
-    def _gnss_fix(gnss, i):
-        """Epoch ``i`` of the arrays given to :meth:`feed` as a :class:`GnssFix` (or None)."""
-        if hasattr(gnss, 'fix') and not gnss.fix[i]:
-            return None
-        v = gnss.v_n[i] if hasattr(gnss, 'v_n') else None
-        return GnssFix(gnss.t[i], gnss.lat[i], gnss.lon[i], gnss.h[i], v)
+    def heading_found(self):
+        """Act on a held-lost heading that a linear heading update set (found again)."""
+        self._heading_taken()
+
+    def heading_measured(self):
+        """Act on a coarse heading an external source measured (nothing to drop here)."""
+
+    def nav_cov(self):
+        """Return None: only the navigating engines (:mod:`.navigation`) have one."""
+        return None
 
     # -- output -------------------------------------------------------------------------
     @property

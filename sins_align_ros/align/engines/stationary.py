@@ -20,9 +20,9 @@ of 300 s.
 Each zero-velocity epoch is gated: one whose innovation is beyond any still base's
 (:data:`~.still_watch.P_FALSE`) is refused, so an acceleration is not turned into tilt;
 the fine stage decides from the refusals and the innovations whether the base moves
-(:mod:`.still_watch`) and may then make the engine coast (:meth:`StationaryEngine.start_coast`:
-free gyro integration with a growing covariance, the last seconds' feedbacks undone) until
-the base has shown rest again (:meth:`StationaryEngine.resume`).
+(:mod:`.still_watch`) and may then make the engine coast (:mod:`.still_coast`: free gyro
+integration with a growing covariance, the last seconds' feedbacks undone) until the base
+has shown rest again.
 """
 from collections import deque
 
@@ -33,7 +33,8 @@ from ...filters.chi2 import chi2_quantile
 from .gnss_gate import GnssGate
 from ..inputs.heading import LINEAR_MAX, take_heading
 from .heading_update import gated_yaw_update
-from .still_watch import P_FALSE, ROLLBACK_S, Coast, cruise_floor
+from .still_coast import StillCoast
+from .still_watch import P_FALSE, ROLLBACK_S
 from ...models.stationary import unobservable_variance
 from ...nav import earth
 from ...nav.frames import rotvec_to_dcm
@@ -61,8 +62,10 @@ def restage_helps(sigma_phi, lat, noise):
     return 0.5 * worst ** 2 > float(np.sqrt(unobservable_variance(lat, noise)[2]))
 
 
-class StationaryEngine:
+class StationaryEngine(StillCoast):
     """Mechanization + seed 002 filter on a still base; see the module docstring.
+
+    It satisfies :class:`~.base.StillEngine`, the contract the fine stage steps it by.
 
     Parameters
     ----------
@@ -125,11 +128,6 @@ class StationaryEngine:
         #: back (a rollback when the base is found moving), the start first
         self._recent = deque([(self.P, np.zeros(3), np.zeros(3))],
                              maxlen=int(np.ceil(ROLLBACK_S / self.period)) + 1)
-        #: free gyro integration while the base moves (:class:`~.still_watch.Coast`), or None
-        self.coast = None
-        #: variances (3,) added to the misalignment's after the base moved and came to rest
-        #: (:meth:`resume`)
-        self.cruise_floor = None
 
     # -- stepping --------------------------------------------------------------------------
     def run_block(self, t, dtheta, dv, i, t_last):
@@ -236,80 +234,6 @@ class StationaryEngine:
         self.heading_measured()
         return result
 
-    def _coast_heading(self, fix, yaw):
-        """Apply :meth:`update_heading`'s yaw update to the coasting covariance."""
-        c = self.coast
-        if c.P[2, 2] > LINEAR_MAX ** 2:
-            self.mech.C_b_n, c.P = take_heading(self.mech.C_b_n, c.P, 2, yaw, fix.var)
-            return 'taken'
-        upd = gated_yaw_update(self.heading_gate, c, np.zeros(3), c.P, np.arange(3),
-                               self.mech.C_b_n, fix, yaw)
-        if upd is None:
-            return 'rejected'
-        x, c.P = upd
-        self.mech.C_b_n = rotvec_to_dcm(x) @ self.mech.C_b_n
-        return 'used'
-
-    # -- a base that moves -------------------------------------------------------------------
-    def start_coast(self, seconds_back, gyro_bias, heading_sigma):
-        """Stop the zero-velocity filter: free gyro integration from ``seconds_back`` ago.
-
-        The feedbacks of the epochs of the last ``seconds_back`` seconds (at most
-        :data:`~.still_watch.ROLLBACK_S`) are undone on the attitude (the feedback is a
-        rotation on the navigation side; the Earth rate turned the attitude by less than
-        1e-3 rad in between, so the order of the two is immaterial), and the covariance
-        restarts from the attitude covariance before them, grown over the time since
-        (:class:`~.still_watch.Coast`; ``gyro_bias`` rad/s, ``heading_sigma`` rad). The
-        velocity corrections of those epochs are undone as well, so that the integrated
-        velocity counts the motion from its start. Returns the seconds actually undone.
-        """
-        n = min(len(self._recent) - 1, int(round(seconds_back / self.period)))
-        recent = list(self._recent)
-        C, dvel = self.mech.C_b_n, np.zeros(3)
-        for _, phi, dv in reversed(recent[len(recent) - n:]):
-            C = rotvec_to_dcm(-phi) @ C
-            dvel -= dv
-        self.mech.C_b_n = C
-        self.mech.correct_velocity(dvel)
-        P_before = recent[len(recent) - 1 - n][0]
-        self.coast = Coast(self._attitude_cov(P_before), n * self.period, self.lat,
-                           heading_sigma, gyro_bias, self.noise)
-        self.last_gated = False
-        return n * self.period
-
-    def cruise_speed_bound(self):
-        """Return the speed (m/s) the base may still have after coasting, or None if moving.
-
-        None when the velocity integrated while coasting is not back to zero within
-        3 :attr:`~.still_watch.Coast.v_sigma` (a base cruising at a constant velocity);
-        else that velocity plus 3 sigma: what a base that shows rest may still cruise at.
-        """
-        c = self.coast
-        speed = float(np.hypot(*self.mech.v_n[:2]))
-        return None if speed > 3.0 * c.v_sigma else speed + 3.0 * c.v_sigma
-
-    def resume(self, speed_bound):
-        """Zero-velocity filtering again from the coasting attitude (the base shows rest).
-
-        The velocity restarts at zero; the filter from its prior with the coasting
-        misalignment covariance (its correlation with the biases is gone). The base may
-        cruise at up to ``speed_bound`` m/s unseen (:meth:`cruise_speed_bound`): its
-        Coriolis acceleration would tilt the zero-velocity solution and its transport rate
-        turn the gyrocompass heading, so both are added to the attitude variances from now
-        on (:func:`~.still_watch.cruise_floor`).
-        """
-        m = self.model
-        P_phi = self.coast.P
-        self.coast = None
-        self.cruise_floor = cruise_floor(speed_bound, self.lat, self.g)
-        self.mech.correct_velocity(self.mech.v_n)
-        P = m.P0(self.v0_sigma, np.sqrt(np.diag(P_phi)), self.noise)
-        P[np.ix_(m.i_phi, m.i_phi)] = P_phi
-        self.x = np.zeros(m.n)
-        self.P = P
-        self._recent.clear()
-        self._recent.append((P, np.zeros(3), np.zeros(3)))
-
     def heading_measured(self):
         """Drop the heading's :attr:`bound`: an external heading, not the gyro bias, sets it."""
         self.bound = np.array([self.bound[0], self.bound[1], 0.0])
@@ -391,6 +315,14 @@ class StationaryEngine:
         P[m.i_phi, m.i_phi] += var_phi
         P[m.i_v, m.i_v] += var_v
         self.P = P
+
+    def tilt_floor(self):
+        """Return zeros (3,): the unseen variances are the fixed :attr:`floor` (make_engine's)."""
+        return np.zeros(3)
+
+    def nav_cov(self):
+        """Return None: the still-base engine does not navigate."""
+        return None
 
     def status(self):
         """Filter internals for diagnostics."""

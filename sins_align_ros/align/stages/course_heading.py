@@ -71,6 +71,7 @@ import math
 import numpy as np
 
 from ...nav import earth
+from ..engines.base import Engine
 from ..inputs.heading import HeadingFix, wrap
 from .slow_monitor import (MAX_COURSE_SIGMA, MAX_LEG_S, MAX_YAW_RATE, MIN_EPOCHS, MIN_LEG_S,
                            MIN_SPEED, RATE_SPAN, STRAIGHT, Leg, YawRate)
@@ -273,7 +274,7 @@ def fitted_course(leg, markov_var=0.0, markov_tau=60.0):
     return wrap(math.atan2(v[1], v[0]) - yaw), math.sqrt(var_v) / speed
 
 
-def for_stage(engine, cfg):
+def for_stage(engine: Engine, cfg):
     """Return the aid of a fine stage running ``engine`` with parameters ``cfg``, or None.
 
     None for the still-base engines and with ``course_heading`` off.

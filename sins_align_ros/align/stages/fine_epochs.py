@@ -10,11 +10,15 @@ motion (:mod:`.motion_check`) judges the IMU samples up to it, each opening the 
 model where the data disagree. A filter failure (:class:`~.gnss_gate.FilterDiverged`)
 comes back as its reason. Uses the stage's ``engine``, ``t0``, ``install``, ``headings``,
 ``consistency``, ``sideslip``, ``slow``, ``motion_check``, ``heading_known``,
-``attitude_cov()``, ``rate_var()`` and ``_epoch_done()``.
+``attitude_cov()``, ``rate_var()`` and ``_epoch_done()``; of the engine, only what its
+contract declares (:class:`~..engines.base.Engine`; the GNSS epochs come to GNSS-aided
+engines only, :class:`~..engines.base.AidedEngine`): the last epoch's record and the
+remedies, never its filter.
 """
 import numpy as np
 
 from . import course_heading
+from ..engines.base import AidedEngine
 from ..engines.gnss_gate import FilterDiverged
 
 
@@ -46,9 +50,9 @@ class EpochUpdates:
         """
         if upd is None:
             return
-        eng, mon = self.engine, self.consistency
-        excess = mon.add_long(fix.t, upd.y, upd.Pzz.diagonal(), eng.last_rows,
-                              bool(eng.kf.rejected))
+        eng: AidedEngine = self.engine
+        mon = self.consistency
+        excess = mon.add_long(fix.t, upd.y, upd.Pzz.diagonal(), eng.last_rows, eng.rejected)
         if excess:
             mon.note_widening(excess, *eng.widen_gnss_noise(excess, mon.long.block_s))
 
@@ -93,7 +97,7 @@ class EpochUpdates:
     def _watch_slow(self, t_now, fix):
         """Give the slow-error monitor (:mod:`.slow_monitor`) an accepted epoch; apply a remedy."""
         if (self.slow is None or self.mounting_doubt or not self.heading_known
-                or self.engine.kf.rejected):
+                or self.engine.rejected):
             return
         m = self.engine.mech
         self._att_cov = None
@@ -110,9 +114,9 @@ class EpochUpdates:
         Returns the reason if the engine diverged.
         """
         if (self.course is None or self.mounting_doubt or not self.heading_known
-                or self.engine.kf.rejected):
+                or self.engine.rejected):
             return None
-        eng = self.engine
+        eng: AidedEngine = self.engine
         m = eng.mech
         leg = self.course.add(t_now, m.C_b_n, m.v_n, fix)
         if leg is None:
@@ -131,9 +135,9 @@ class EpochUpdates:
         # a capped cubature prior, or a linear filter's heading held at its range before
         # the aid ever set it: taken directly; held after the aid set it: a linear update,
         # and taken if its gate rejects it (the held variance says too little)
-        held = getattr(eng, 'heading_lost', False)
+        held = eng.heading_lost
         first = self.course.n_taken + self.course.n_used == 0
-        take = getattr(eng, 'heading_prior_var', None) is not None or (held and first)
+        take = eng.heading_prior_var is not None or (held and first)
         heading = self.course.fix(t_now, m.C_b_n, D, var)
         try:
             result = eng.update_heading(heading, t_now,
@@ -141,7 +145,7 @@ class EpochUpdates:
             if held and result == 'rejected':
                 result = eng.update_heading(heading, t_now, linear_max=0.0)
             elif held and result == 'used':
-                eng._heading_taken()
+                eng.heading_found()
         except FilterDiverged as exc:
             return str(exc)
         widen = self.course.result(t_now, D, var, result, var_h)
@@ -175,15 +179,15 @@ class EpochUpdates:
             self._check_sideslip(fix)
             self._check_long(fix, upd)
             if upd is not None:
-                eng = self.engine
+                eng: AidedEngine = self.engine
                 # white excess innovations (a noisier receiver) are answered by the
                 # engine's R where it sets R, by the filter's own R posterior in the VB
                 # family (no remedy from here), and for ASCKF, whose Sage-Husa R learns
                 # only on epochs R dominates, by the state's inflation like every failure
-                vb = getattr(eng.kf, 'estimates_R', False)
                 factor = self.consistency.add(eng.last_nis, eng.last_dof, eng.last_u,
-                                              eng.last_rows if eng.sets_R or vb else None,
-                                              rejected=bool(eng.kf.rejected),
+                                              eng.last_rows if eng.sets_R or eng.estimates_R
+                                              else None,
+                                              rejected=eng.rejected,
                                               noise_remedy=eng.sets_R)
                 if factor is not None:
                     eng.inflate(factor)

@@ -3,10 +3,12 @@
 The epochs themselves (GNSS, external heading, the consistency remedy) are
 :mod:`.fine_epochs`.
 
-Two ways of stepping, by the engine's kind: the stationary engine mechanizes whole
-blocks between its own filter epochs (vectorised); the GNSS-aided engines step
-sample by sample and take each queued GNSS epoch at the first sample at or past its
-stamp. Either way, every filter epoch is followed by the convergence check
+The stage talks to its engine through the declared contract only
+(:class:`~..engines.base.Engine`). Two ways of stepping, by the engine's kind, each a part
+of its own (:mod:`.fine_stepping`, picked once when the stage starts): the stationary
+engine mechanizes whole blocks between its own filter epochs (vectorised); the GNSS-aided
+engines step sample by sample and take each queued GNSS epoch at the first sample at or
+past its stamp. Either way, every filter epoch is followed by the convergence check
 (:class:`~.convergence.ConvergenceMonitor`): a converged stage restages the
 stationary filter (up to ``max_stages``) or turns ``fine`` into ``aligned``.
 
@@ -55,23 +57,18 @@ import math
 
 import numpy as np
 
+from ..engines.base import Engine
 from ..engines.prior_shaping import cap_angles
 from .consistency import ConsistencyMonitor
 from .convergence import ConvergenceMonitor
 from .fine_epochs import EpochUpdates
-from ..engines.gnss_gate import FilterDiverged
-from ..inputs.imu_input import intervals
+from .fine_stepping import ALIGNED, FINE, AidedStepping, StillStepping
 from . import course_heading, motion_check, slow_monitor
-from ..output import ANGLE_UNKNOWN_VAR, HEADING_UNKNOWN_VAR, Rows, one_row
+from ..output import ANGLE_UNKNOWN_VAR, HEADING_UNKNOWN_VAR
 from .sideslip import SideslipCheck
 from .sigma_history import SigmaHistory
-from ..engines.still_watch import StillWatch
-from ...units import DPH
 
-FINE, ALIGNED = 'fine', 'aligned'
-#: GNSS fixes this recent (s) make a still-base stage that finds its base moving end, so
-#: that a GNSS-aided filter takes over; older ones: it coasts
-GNSS_RECENT_S = 5.0
+__all__ = ['ALIGNED', 'FINE', 'Clock', 'FineStage']
 
 
 class Clock:
@@ -93,9 +90,9 @@ class FineStage(EpochUpdates):
     ``noise`` the sensor model (NoiseSpec) whose gyro error that move takes into account.
     """
 
-    def __init__(self, engine, floor, clock, cfg, heading_known=True, tilt_bound=0.0,
+    def __init__(self, engine: Engine, floor, clock, cfg, heading_known=True, tilt_bound=0.0,
                  install=None, noise=None, headings=None):
-        self.engine = engine
+        self.engine: Engine = engine
         #: the external heading's queue (:class:`~.heading.HeadingBuffer`), or None
         self.headings = headings
         self.install = install
@@ -127,14 +124,16 @@ class FineStage(EpochUpdates):
         #: why the vehicle frame cannot be the told one (the self-check's mounting check):
         #: then the attitude is published as unknown and the stage is never ``aligned``
         self.mounting_doubt = ''
-        #: the same check under way, from the GNSS velocity (:mod:`.sideslip`), or None
+        #: how the engine is stepped, by its kind (the one place the stage asks it,
+        #: :attr:`~..engines.base.Engine.restages`): its own zero-velocity epochs and the
+        #: rest watch, or the GNSS epochs (:mod:`.fine_stepping`)
+        self.stepping = StillStepping(self, cfg) if engine.restages else AidedStepping(self)
+        #: the same check under way, from the GNSS velocity (:mod:`.sideslip`), aided
+        #: engines only, or None
         self.sideslip = (SideslipCheck(cfg['mounting_check_max_sideslip_deg'])
-                         if cfg['sensor_self_check'] and not engine.restages else None)
+                         if cfg['sensor_self_check'] and isinstance(self.stepping, AidedStepping)
+                         else None)
         self._att_cov = None
-        #: whether a still-base engine's base still rests (:mod:`.still_watch`), or None
-        self.still = (StillWatch(engine, cfg['fine_update_hz'], cfg['coarse_duration'],
-                                 cfg['gyro_bias_instability_dph'] * DPH)
-                      if engine.restages else None)
         #: the heading against the GNSS course (:mod:`.slow_monitor`) and the sensor model
         #: against the IMU in motion (:mod:`.motion_check`), aided engines only, or None
         self.slow = slow_monitor.for_stage(engine, cfg)
@@ -146,7 +145,7 @@ class FineStage(EpochUpdates):
     @property
     def moving(self):
         """Why the base is taken as moving without GNSS ('' at rest; :mod:`.still_watch`)."""
-        return '' if self.still is None else self.still.moving
+        return self.stepping.moving
 
     @property
     def floor(self):
@@ -156,12 +155,22 @@ class FineStage(EpochUpdates):
         misalignment leaves (:meth:`~.rotation_error.RotationError.tilt_floor`), as the
         model has it now.
         """
-        more = getattr(self.engine, 'tilt_floor', None)
-        return self._floor if more is None else self._floor + more()
+        return self._floor + self.engine.tilt_floor()
 
     @property
     def mech(self):
+        """The engine's strapdown state (:class:`~..engines.base.StrapdownState`)."""
         return self.engine.mech
+
+    def nav_row(self):
+        """Return the navigation row (1, 6) (lat, lon rad, h m, ENU velocity m/s), or None.
+
+        None unless the stage publishes the navigation solution (:attr:`navigating`).
+        """
+        if not self.navigating:
+            return None
+        m = self.engine.mech
+        return np.array([[m.lat, m.lon, m.h, m.v_n[0], m.v_n[1], m.v_n[2]]])
 
     def rate_var(self, dt):
         """Variance per axis ((rad/s)^2) of one sample's measured rate over ``dt`` seconds.
@@ -232,28 +241,6 @@ class FineStage(EpochUpdates):
             self.engine.widen(var_phi, var_v)
             self._att_cov = None
 
-    def _still_epoch(self, t, gnss):
-        """After a still-base engine's zero-velocity epoch at ``t``: the motion watch.
-
-        Returns the reason to end the stage, or None (:meth:`.still_watch.StillWatch.epoch`).
-        """
-        fix = None if gnss is None else gnss.last_fix
-        event, reason = self.still.epoch(
-            t, fix is not None and t - fix[0] <= GNSS_RECENT_S, self._heading_sigma)
-        if event == 'resume':                   # filtering again: it must settle again
-            self.converged = False
-            self.monitor.start(t)
-        elif event == 'coast':
-            self.phase = FINE
-        if event is not None:
-            self._att_cov = None
-        return reason
-
-    def _heading_sigma(self):
-        """Return the published heading's 1-sigma (rad); pi when the gyros cannot find north."""
-        P = self.attitude_cov()
-        return math.sqrt(max(P[2, 2], 0.0)) if self.heading_known else math.pi
-
     def _epoch_done(self, t):
         """After a filter epoch at ``t``: the convergence check."""
         self._att_cov = None
@@ -264,16 +251,7 @@ class FineStage(EpochUpdates):
             return
         sig_u = math.sqrt(max(P[2, 2], 0.0))
         if not self.converged:
-            if not self.engine.restages:
-                if t - self.monitor.t0 < self.monitor.min_duration:
-                    return
-            elif not self.monitor.converged(t, sig_u):
-                return
-            elif self.engine.restage_helps and self.stage < self.max_stages:
-                self.engine.restage()
-                self._att_cov = None
-                self.stage += 1
-                self.monitor.start(t)
+            if not self.stepping.settled(t, sig_u):
                 return
             self.converged = True
         ready = not self._ready_reason()
@@ -284,141 +262,15 @@ class FineStage(EpochUpdates):
         elif self.phase == ALIGNED and not ready:
             self.phase = FINE
 
-    # -- stepping --------------------------------------------------------------------------
+    # -- stepping (by the engine's kind, :mod:`.fine_stepping`) --------------------------
     def run(self, t, dtheta, dv, i, gnss):
         """Process samples from index ``i``: returns ``(parts, end index, diverged reason)``.
 
         ``parts`` are :class:`~.output.Rows`; on a divergence the rows end with the sample
         at which it happened and the reason is a string (else None).
         """
-        if self.engine.restages:
-            c = self.clock
-            hd = self._heading_due_index(t, i)
-            end = len(t) if hd is None else hd + 1
-            t_prev = c.t_last
-            j, C, epoch = self.engine.run_block(t[:end], dtheta[:end], dv[:end], i, c.t_last)
-            c.t_last = t[j - 1]
-            if self.still is not None:
-                self.still.push(t[i:j], dtheta[i:j], dv[i:j], t_prev)
-            reason = None
-            if epoch:
-                reason = self._still_epoch(c.t_last, gnss)
-                C[-1] = self.mech.C_b_n
-                if reason is None:
-                    self._epoch_done(c.t_last)
-            if reason is None and j == end and hd is not None:
-                dt = t[hd] - (t[hd - 1] if hd > i else t_prev)
-                reason = self._apply_heading(t[hd], dtheta[hd], dt)
-                C[-1] = self.mech.C_b_n
-            phase = self.phase if reason is None else FINE
-            return [Rows(t[i:j], C, self.attitude_cov(), phase)], j, reason
-        return self._run_aided(t[i:], dtheta[i:], dv[i:], gnss, i)
-
-    def _run_aided(self, t, dtheta, dv, gnss, offset):
-        """Run the aided engines' block path: compiled stretches between GNSS epochs.
-
-        The same rows, covariances and phases as :meth:`step` sample by sample (a test
-        keeps them equal): each stretch ends at the sample a queued GNSS epoch is due at;
-        the rows are cut where the covariance changes, at a prediction without GNSS and at
-        a GNSS epoch.
-        """
-        eng, c = self.engine, self.clock
-        m = eng.mech
-        n = len(t)
-        if self.motion_check is not None:
-            self.motion_check.push(t, dtheta, dv, intervals(t, c.t_last))
-        Cs = np.empty((n, 3, 3))
-        nav = np.empty((n, 6)) if self.navigating else None
-        parts, start = [], 0
-
-        def cut(end, cov, phase):
-            parts.append(Rows(t[start:end], Cs[start:end], cov, phase,
-                              None if nav is None else nav[start:end]))
-
-        k = 0
-        while k < n:
-            due = [d for d in (gnss.next_due_index(t, k), self._heading_due_index(t, k))
-                   if d is not None]
-            due_at = min(due) if due else None
-            end = n if due_at is None else due_at + 1
-            dt = intervals(t[k:end], c.t_last)
-            blk = eng.step_block(dtheta[k:end], dv[k:end], dt)
-            last = k + blk.end - 1
-            Cs[k:last + 1] = blk.C
-            if nav is not None:
-                nav[k:last + 1] = blk.nav
-            c.t_last = t[last]
-            for e in [k + p for p in blk.predicted] + ([last] if blk.reason is not None else []):
-                if e == last and blk.reason is not None:       # diverged in a prediction
-                    Cs[e] = m.C_b_n
-                    if nav is not None:
-                        nav[e] = np.nan
-                    cut(e + 1, eng.attitude_cov(), FINE)
-                    return parts, offset + e + 1, blk.reason
-                if e > start:                  # the rows so far keep their covariance
-                    cut(e, self.attitude_cov(), self.phase)
-                    start = e
-                self._att_cov = None           # an epoch without GNSS: the sigma grew
-            if due_at is not None:
-                e = due_at
-                if e > start:
-                    cut(e, self.attitude_cov(), self.phase)
-                    start = e
-                reason = self._apply_epochs(t[e], gnss, dtheta[e], dt[-1])
-                Cs[e] = m.C_b_n
-                if reason is not None:         # diverged: the stage ends at this row
-                    if nav is not None:
-                        nav[e] = np.nan
-                    cut(e + 1, eng.attitude_cov(), FINE)
-                    return parts, offset + e + 1, reason
-                if nav is not None:
-                    v = m.v_n
-                    nav[e] = (m.lat, m.lon, m.h, v[0], v[1], v[2])
-            k = end
-        cut(n, self.attitude_cov(), self.phase)
-        return parts, offset + n, None
+        return self.stepping.run(t, dtheta, dv, i, gnss)
 
     def step(self, t, dtheta, dv, gnss):
         """One sample with scalar arithmetic (the live node's path): ``(Output, reason)``."""
-        eng, c = self.engine, self.clock
-        dt = t - c.t_last
-        if eng.restages:
-            C, epoch = eng.step(dtheta, dv, dt)
-            c.t_last = t
-            if self.still is not None:
-                self.still.push(t, dtheta, dv, t - dt)
-            if epoch:
-                reason = self._still_epoch(t, gnss)
-                C = eng.mech.C_b_n
-                if reason is not None:
-                    return one_row(t, C, eng.attitude_cov(), FINE, None), reason
-                self._epoch_done(t)
-            if self.headings is not None and self.headings.due(t):
-                reason = self._apply_heading(t, dtheta, dt)
-                C = eng.mech.C_b_n
-                if reason is not None:               # diverged: the stage ends at this row
-                    return one_row(t, C, eng.attitude_cov(), FINE, None), reason
-        else:
-            n_pred = eng.n_predict_only
-            if self.motion_check is not None:
-                self.motion_check.push(t, dtheta, dv, dt)
-            try:
-                C = eng.step_imu(dtheta, dv, dt)
-                reason = None
-            except FilterDiverged as exc:
-                reason = str(exc)
-            c.t_last = t
-            if reason is None and eng.n_predict_only != n_pred:    # the sigma grew
-                self._att_cov = None
-            if reason is None and (gnss.due(t) or (self.headings is not None
-                                                   and self.headings.due(t))):
-                reason = self._apply_epochs(t, gnss, dtheta, dt)
-                C = eng.mech.C_b_n
-            if reason is not None:                   # diverged: the stage ends at this row
-                nav = np.full((1, 6), np.nan) if self.navigating else None
-                return one_row(t, eng.mech.C_b_n, eng.attitude_cov(), FINE, nav), reason
-        nav = None
-        if self.navigating:
-            m = eng.mech
-            nav = np.array([[m.lat, m.lon, m.h, m.v_n[0], m.v_n[1], m.v_n[2]]])
-        return one_row(t, C, self.attitude_cov(), self.phase, nav), None
+        return self.stepping.step(t, dtheta, dv, gnss)

@@ -52,6 +52,7 @@ from dataclasses import replace
 import numpy as np
 
 from ...units import DEG, DPSH, UG
+from ..engines.base import AidedEngine, Engine
 from .angle_walk import walk_density, walk_or_noise
 from .gnss_noise_check import JITTER_COUNTED, velocity_jitter
 from .grade_check import (ACCEL_SCALE_BY_GYRO_NOISE, ACCEL_VRW_BY_GYRO_NOISE,
@@ -74,25 +75,6 @@ TURN_RATE = 10.0 * DEG
 def class_value(table, gyro_noise_dpsh):
     """Value of a self-check class ``table`` ((upper edge, value), ...) for a gyro noise."""
     return next(v for edge, v in table if gyro_noise_dpsh <= edge)
-
-
-def widen_process_noise(engine, rows, factor, floor):
-    """Multiply the engine's process noise of state ``rows`` (a slice) by ``factor`` (> 1).
-
-    The continuous densities ``Qc`` and the model's own ``_Qc0`` (so that relaxing an
-    inflation returns to the widened model, not below it), at least ``floor`` each; an
-    adaptive filter's own Q estimate (ASCKF's Sage-Husa) has those rows and columns scaled
-    as :meth:`~.consistency_remedies.ConsistencyRemedies.inflate` scales all of it.
-    """
-    k = np.arange(len(engine.Qc))[rows]
-    for name in ('Qc', '_Qc0'):
-        q = np.array(getattr(engine, name), dtype=float)
-        q[k] = np.maximum(q[k] * factor, floor)
-        setattr(engine, name, q)
-    if engine.own_Q:
-        s = np.ones(len(engine.Qc))
-        s[k] = math.sqrt(factor)
-        engine.kf.Q = engine.kf.Q * np.outer(s, s)
 
 
 class MotionCheck:
@@ -141,7 +123,7 @@ class MotionCheck:
         self._f.append(np.asarray(dv, dtype=float).reshape(-1, 3) / d)
         self._dt.append(dt)
 
-    def epoch(self, t_now, engine):
+    def epoch(self, t_now, engine: AidedEngine):
         """At a GNSS epoch at ``t_now``: judge the samples up to it if they fill a window.
 
         Widens ``engine`` where the data show more than the model; returns True if it did.
@@ -162,7 +144,7 @@ class MotionCheck:
         jitter = self._jitter(w[:n] * d, f[:n] * d, dt[:n], engine)
         return self._judge(w[:n], f[:n], float(np.mean(dt[:n])), engine) or jitter
 
-    def _jitter(self, dth, dv, dt, engine):
+    def _jitter(self, dth, dv, dt, engine: AidedEngine):
         """Raise ``engine``'s velocity jitter to one window's where it counts; True if so.
 
         ``dth``, ``dv`` (N, 3) the window's increments, ``dt`` (N,) its intervals (module
@@ -183,7 +165,7 @@ class MotionCheck:
                     'imu_velocity_jitter_mps widened in the running filter')
         return True
 
-    def _judge(self, w, f, dt, engine):
+    def _judge(self, w, f, dt, engine: AidedEngine):
         """Widen ``engine`` from one window's rates ``w`` and specific forces ``f`` (N, 3)."""
         arw = difference_density(w, dt)
         if not math.isfinite(arw):
@@ -210,7 +192,7 @@ class MotionCheck:
                  '{:.3g} in the model')):
             model = getattr(self.noise, field)
             if est > NOISE_RATIO * model:
-                widen_process_noise(engine, rows, (est / model) ** 2, est ** 2)
+                engine.widen_process_noise(rows, (est / model) ** 2, est ** 2)
                 self._found(name, est / unit, what.format(est / unit, label, model / unit)
                             + f': {name} widened in the running filter')
                 self.noise = replace(self.noise, **{field: est})
@@ -224,7 +206,7 @@ class MotionCheck:
                                          example, unit) or did
         return did
 
-    def _raise_scales(self, engine, triad, ppm, setter, why, example, unit):
+    def _raise_scales(self, engine: AidedEngine, triad, ppm, setter, why, example, unit):
         """Take the class's ``ppm`` (scale, misalignment) of ``triad`` where larger; True if so."""
         old = self.scales[triad]
         new = tuple(max(v * 1e-6, o) for v, o in zip(ppm, old))
@@ -258,7 +240,7 @@ class MotionCheck:
         return s
 
 
-def for_stage(engine, cfg, noise):
+def for_stage(engine: Engine, cfg, noise):
     """Return the motion check of a fine stage running ``engine`` (None: still base, no check)."""
     if engine.restages or not cfg['sensor_self_check'] or noise is None:
         return None

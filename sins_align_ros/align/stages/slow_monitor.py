@@ -58,9 +58,10 @@ as for a failed consistency test). Those raised process noises are halved back b
 consistency monitor's relaxation within seconds, while the error that built up unseen is a
 drift the model lacks: the heading went ``|D|`` off within the failing legs' span ``T``,
 so the gyro-drift states get, for good, the rate random walk ``q = D^2 / T^3`` that
-reaches a drift of ``|D| / T`` within ``T`` (:func:`raise_drift_noise`; a car whose up
-gyro has a 300 deg/h bias it is told as 1 deg/h: 76 % of its 1-s heading rows outside 3
-sigma with the inflation alone, 18 % with this, all of them before the first failure;
+reaches a drift of ``|D| / T`` within ``T``
+(:meth:`~.process_noise.ProcessNoise.raise_drift_noise`; a car whose up gyro has a
+300 deg/h bias it is told as 1 deg/h: 76 % of its 1-s heading rows outside 3 sigma with
+the inflation alone, 18 % with this, all of them before the first failure;
 test_slow_monitor.py). While failing, each further disagreeing leg applies the
 remedy again; ``slow_monitor_legs`` consecutive agreeing legs end the failure (the
 inflated filter agrees with the course again) and the stage may be ``aligned`` again.
@@ -76,6 +77,7 @@ from collections import deque
 import numpy as np
 
 from ...nav import earth
+from ..engines.base import AidedEngine, Engine
 
 #: horizontal speed (m/s) below which an epoch joins no leg
 MIN_SPEED = 0.5
@@ -335,7 +337,7 @@ class SlowErrorMonitor:
         self.due = (var_phi, factor, q_drift)
         return True
 
-    def remedy(self, engine):
+    def remedy(self, engine: AidedEngine):
         """Apply the due remedy to ``engine`` (``widen`` then ``inflate``; module docstring)."""
         if self.due is None:
             return
@@ -344,7 +346,7 @@ class SlowErrorMonitor:
         engine.widen(var_phi, 0.0)
         if factor > 1.0:
             engine.inflate(factor)
-        raise_drift_noise(engine, q_drift)
+        engine.raise_drift_noise(q_drift)
 
     def take_findings(self):
         """Return the failures not reported yet (a WARN each; and forget them)."""
@@ -368,25 +370,7 @@ class SlowErrorMonitor:
         return s
 
 
-def raise_drift_noise(engine, q):
-    """Raise the gyro-drift states' process noise (rad^2/s^3) to at least ``q``, for good.
-
-    The continuous density ``Qc`` and the model's own ``_Qc0`` (which relaxing an inflation
-    returns to), and a drift the model held constant is held no longer.
-    """
-    if engine.i_eps is None or not q > 0.0:
-        return
-    k = np.arange(len(engine.Qc))[engine.i_eps]
-    for name in ('Qc', '_Qc0'):
-        v = np.array(getattr(engine, name), dtype=float)
-        v[k] = np.maximum(v[k], q)
-        setattr(engine, name, v)
-    held = np.array(engine._held)
-    held[k] = False
-    engine._held = held
-
-
-def for_stage(engine, cfg):
+def for_stage(engine: Engine, cfg):
     """Return the monitor of a fine stage running ``engine`` with parameters ``cfg``, or None.
 
     None for the still-base engines (no legs) and with ``slow_monitor_legs`` 0.
