@@ -116,7 +116,7 @@ def fine_stage_for(start, cfg, noise, with_velocity, heading_known, heading_meas
     forecast (:mod:`.expectation`) all start fine stages here.
     """
     engine, floor, warnings = make_engine(cfg, noise, start, with_velocity, heading_known)
-    if heading_measured and hasattr(engine, 'heading_measured'):
+    if heading_measured:
         engine.heading_measured()
     fine = FineStage(engine, floor, clock, cfg, heading_known,
                      unobservable_variance(start.position[0], noise)[0], install, noise,
