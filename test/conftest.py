@@ -2,6 +2,7 @@
 node processes (:func:`running`) and the simulator node's messages (:func:`run_simulator`).
 """
 import contextlib
+import importlib.util
 import fcntl
 import itertools
 import os
@@ -19,6 +20,14 @@ os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = ROOT.parent / 'shared' / 'data'
 _domain_ids = itertools.count()
+
+
+def load_bench(name):
+    """Return ``bench/<name>.py`` loaded as a module (bench/ is not a package)."""
+    spec = importlib.util.spec_from_file_location(f'bench_{name}', ROOT / 'bench' / f'{name}.py')
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
 
 
 def _worker_index():

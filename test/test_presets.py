@@ -7,11 +7,11 @@ are cheap (no run): a preset added or changed without being measured, or measure
 found no better than the defaults, fails here. (test_nodes.py loads each file into its
 node over DDS.)
 """
-import importlib.util
 from pathlib import Path
 
 import pytest
 
+from conftest import load_bench
 from sins_align_ros.align.params import load_yaml, split_node_params
 from sins_align_ros.sim.presets import SCENARIOS
 
@@ -21,11 +21,8 @@ YAMLS = sorted((ROOT / 'config').glob('*.yaml'))
 
 
 def bench_module():
-    """bench/presets.py as a module (its digest and scenario table)."""
-    spec = importlib.util.spec_from_file_location('bench_presets', ROOT / 'bench' / 'presets.py')
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    """Return bench/presets.py as a module."""
+    return load_bench('presets')
 
 
 def verdicts():

@@ -1,10 +1,9 @@
 """bench/tilt_limit.py's ideal-estimator covariance against the closed form of a still IMU."""
-import importlib.util
 import math
-from pathlib import Path
 
 import numpy as np
 
+from conftest import load_bench
 from sins_align_ros.nav import earth
 from sins_align_ros.sim.gnss import GnssSpec
 from sins_align_ros.sim.imu import ImuSpec
@@ -12,14 +11,10 @@ from sins_align_ros.sim.trajectory import Trajectory
 from sins_align_ros.units import DEG, UG
 from tolerance import roundoff
 
-ROOT = Path(__file__).resolve().parents[1]
-
 
 def _tilt_limit():
-    spec = importlib.util.spec_from_file_location('tilt_limit', ROOT / 'bench' / 'tilt_limit.py')
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    """Return bench/tilt_limit.py as a module."""
+    return load_bench('tilt_limit')
 
 
 def test_still_tilt_sigma_tends_to_accel_bias_over_g():
