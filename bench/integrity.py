@@ -48,6 +48,7 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))      # this checkout's package, not an installed copy
 
+from sins_align_ros.align.filter_table import FILTERS  # noqa: E402
 from sins_align_ros.align.params import MOVING_FILTERS  # noqa: E402
 from sins_align_ros.eval.cache import simulate_cached  # noqa: E402
 from sins_align_ros.eval.evidence import limits_of  # noqa: E402
@@ -75,21 +76,11 @@ SCENARIOS = {
                                           'at 100 s and 185 s'),
     'seed004': ('seed004_medium', 300.0, 'seed 004 USV in severe sea, GNSS outliers'),
 }
-#: filter -> the scenarios it applies to (a stationary filter on the car: its refusal)
-FILTER_SCENARIOS = {
-    'reduced7': ('static', 'ship_sway', 'seed003_car'),
-    'stationary10': ('static', 'ship_sway', 'seed003_car'),
-    'stationary12': ('static', 'ship_sway', 'seed003_car'),
-    'ckf': ('static', 'ship_sway', 'seed000'),
-    'asckf': ('static', 'ship_sway', 'seed000'),
-    'vbckf': ('static', 'seed004'),
-    'vbch': ('static', 'seed004'),
-    'kf': ('static', 'seed003_car', 'seed001_flight'),
-    'vbakf': ('static', 'seed003_car', 'seed001_flight'),
-    'mvbakf': ('static', 'seed003_car', 'seed001_flight'),
-    'ukf': ('static', 'seed003_car', 'seed001_flight'),
-    'auto': ('static', 'ship_sway', 'seed000', 'seed001_flight', 'seed003_car', 'seed004'),
-}
+#: filter -> the scenarios it applies to (the filter table's presets; a stationary filter on
+#: the car: its refusal); ``auto`` on all of them
+FILTER_SCENARIOS = {name: tuple(next(k for k, v in SCENARIOS.items() if v[0] == p)
+                                for p in row.checked_on) for name, row in FILTERS.items()}
+FILTER_SCENARIOS['auto'] = tuple(SCENARIOS)
 #: ground vehicles (issue 44): vehicle -> (preset whose trajectory and IMU rate it takes,
 #: duration s, what it is)
 GROUND = {

@@ -6,6 +6,7 @@ import pytest
 
 from sins_align_ros.align.engines.gyro_scale import SCALE_STATE_FACTOR
 from sins_align_ros.align.engines.navigation import IntegratedNavigation
+from sins_align_ros.align.engines.registry import engine_class
 from sins_align_ros.align.engines.rotation_error import COHERENCE_FACTOR
 from sins_align_ros.eval.integrity import run_integrity
 from sins_align_ros.eval.run import run_pipeline
@@ -47,8 +48,7 @@ def test_the_nonlinear_drift_takes_the_scale_factor_as_the_linear_model_does():
 
 def _engine():
     P0, Qc = np.eye(15) * 1e-4, np.zeros(15)
-    return IntegratedNavigation(np.eye(3), np.zeros(3), 0.9, 0.2, 40.0, P0, Qc,
-                                np.eye(6), method='kf')
+    return engine_class('kf')(np.eye(3), np.zeros(3), 0.9, 0.2, 40.0, P0, Qc, np.eye(6))
 
 
 def test_a_scale_factor_goes_to_the_states_and_the_misalignment_stays_noise():

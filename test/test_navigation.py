@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from sins_align_ros.align.engines.navigation import IntegratedNavigation, gyro_tau, model_noise
+from sins_align_ros.align.engines.navigation import gyro_tau, model_noise
+from sins_align_ros.align.engines.registry import engine_class
 from sins_align_ros.align.pipeline import AlignmentPipeline
 from sins_align_ros.eval.feed import feed_arrays
 from sins_align_ros.filters import kf as lkf
@@ -226,8 +227,7 @@ def test_a_dropped_horizontal_force_becomes_velocity_noise():
     from sins_align_ros.align.engines.force import FORCE_SIGNIFICANCE
     P0, Qc = model_noise(15, [0.1, 0.1, 0.2], 0.1, 1.0, (200 * DPH, 0.0), (5000 * UG, 0.0),
                          0.0, 0.0, 300.0, 1000.0)
-    eng = IntegratedNavigation(np.eye(3), np.zeros(3), LAT, 0.0, 0.0, P0, Qc, np.eye(6),
-                               method='kf')
+    eng = engine_class('kf')(np.eye(3), np.zeros(3), LAT, 0.0, 0.0, P0, Qc, np.eye(6))
     d = np.diag(eng.kf.P)
     g = earth.gravity(LAT, 0.0)
     s = math.sqrt(g * g * max(d[0], d[1]) + float(np.max(d[eng.i_nab])))
@@ -275,8 +275,8 @@ def test_a_lost_heading_takes_no_information_from_the_horizontal_force(method):
     f_b = np.array([0.0, 0.5, g])                       # a left turn at 1 m/s, 0.5 m/s^2
     shrink = {}
     for lost in (True, False):
-        eng = IntegratedNavigation(np.eye(3), np.array([1.0, 0.0, 0.0]), LAT, 0.0, 0.0, P0,
-                                   Qc, R, method=method, heading_lost=lost)
+        eng = engine_class(method)(np.eye(3), np.array([1.0, 0.0, 0.0]), LAT, 0.0, 0.0, P0,
+                                   Qc, R, heading_lost=lost)
         for _ in range(20):
             eng.step_imu(np.array([0.0, 0.0, 0.5 * 0.01]), f_b * 0.01, 0.01)
         f_n = eng.sums.dv_sum / eng.sums.T
@@ -296,8 +296,8 @@ def test_a_lost_heading_takes_no_information_from_the_horizontal_force(method):
     assert shrink[False] < 1.0 - 1e-3          # measurably (kf 0.5x, ukf 0.98x from 29 deg)
     # lost for longer than the wait for an acquisition: the linear model is let try
     from sins_align_ros.align.engines.force import LOST_WAIT_S
-    eng = IntegratedNavigation(np.eye(3), np.array([1.0, 0.0, 0.0]), LAT, 0.0, 0.0, P0, Qc,
-                               R, method=method, heading_lost=True)
+    eng = engine_class(method)(np.eye(3), np.array([1.0, 0.0, 0.0]), LAT, 0.0, 0.0, P0, Qc,
+                               R, heading_lost=True)
     eng.lost_s = LOST_WAIT_S
     for _ in range(20):
         eng.step_imu(np.array([0.0, 0.0, 0.5 * 0.01]), f_b * 0.01, 0.01)
@@ -356,8 +356,8 @@ def test_a_block_of_samples_does_what_the_samples_one_at_a_time_do():
                               np.full(n, 0.004)]) + 1e-5 * rng.standard_normal((n, 3))
     dv = np.array([0.02, 0.0, 9.8 * 0.01]) + 1e-3 * rng.standard_normal((n, 3))
     dt = np.full(n, 0.01)
-    engines = [IntegratedNavigation(euler_to_dcm([0.01, -0.02, 0.5]), np.array([3.0, 1.0, 0]),
-                                    LAT, 0.0, 0.0, P0, Qc, np.eye(6), method='kf')
+    engines = [engine_class('kf')(euler_to_dcm([0.01, -0.02, 0.5]), np.array([3.0, 1.0, 0]),
+                                  LAT, 0.0, 0.0, P0, Qc, np.eye(6))
                for _ in range(2)]
     singly, block = engines
     for k in range(n):
@@ -379,8 +379,8 @@ def test_a_block_of_samples_does_what_the_samples_one_at_a_time_do():
 def test_markov_compensation_decays_with_its_correlation_time():
     P0, Qc = model_noise(15, [1e-3] * 3, 0.1, 1.0, (DPH, 0.0), (100 * UG, 0.0), 0.0, 0.0,
                          100.0, 1000.0)
-    eng = IntegratedNavigation(np.eye(3), np.zeros(3), LAT, 0.0, 0.0, P0, Qc,
-                               np.eye(6), method='kf', tau_g=100.0, tau_a=1000.0)
+    eng = engine_class('kf')(np.eye(3), np.zeros(3), LAT, 0.0, 0.0, P0, Qc,
+                             np.eye(6), tau_g=100.0, tau_a=1000.0)
     eng.eps_markov[:] = 1.0
     eng.nab[:] = 2.0
     for _ in range(100):                                # 1 s without GNSS
@@ -390,8 +390,7 @@ def test_markov_compensation_decays_with_its_correlation_time():
     assert_roundoff(eng.eps_markov, np.exp(-1.0 / 100.0), 104)
     assert_roundoff(eng.nab, 2 * np.exp(-1.0 / 1000.0), 104)
     with pytest.raises(ValueError):
-        IntegratedNavigation(np.eye(3), np.zeros(3), LAT, 0.0, 0.0, P0, Qc, np.eye(6),
-                             method='nope')
+        engine_class('nope')(np.eye(3), np.zeros(3), LAT, 0.0, 0.0, P0, Qc, np.eye(6))
 
 
 @pytest.mark.parametrize('course_off_deg, taken',
@@ -406,8 +405,8 @@ def test_a_lost_heading_is_taken_from_the_track_only_where_they_disagree(course_
     P0, Qc = model_noise(15, [1e-3, 1e-3, 0.2], 0.1, 1.0, (DPH, 0.0), (100 * UG, 0.0), 0.0,
                          0.0, 100.0, 1000.0)
     yaw = 30.0 * DEG
-    eng = IntegratedNavigation(euler_to_dcm(np.array([0.01, -0.02, yaw])), np.zeros(3), LAT,
-                               0.0, 0.0, P0, Qc, np.eye(6), method='kf')
+    eng = engine_class('kf')(euler_to_dcm(np.array([0.01, -0.02, yaw])), np.zeros(3), LAT,
+                             0.0, 0.0, P0, Qc, np.eye(6))
     eng.heading_lost = True
     P = eng.kf.P.copy()
     P[2, 2] = (15.0 * DEG) ** 2              # held at the linear model's limit: lost
@@ -456,8 +455,8 @@ def test_a_constant_bias_folded_into_the_markov_state_keeps_the_markov_drive():
     assert Qc[lc.I_EPS15] == pytest.approx([lc.markov_q(50 * DPH, 300.0)] * 3)
     # the 15-state engine keeps most of a 200 deg/h compensation over the flight's final
     # 855 s cruise (it kept 6% with the Markov part's 300 s)
-    eng = IntegratedNavigation(np.eye(3), np.zeros(3), LAT, 0.0, 0.0, P0, Qc, np.eye(6),
-                               method='kf', tau_g=tau)
+    eng = engine_class('kf')(np.eye(3), np.zeros(3), LAT, 0.0, 0.0, P0, Qc, np.eye(6),
+                             tau_g=tau)
     eng.eps_markov[:] = 200 * DPH
     for _ in range(855):                                # 1-s samples: an epoch every 2 s
         eng.step_imu(np.zeros(3), np.array([0.0, 0.0, 9.8]), 1.0)
@@ -528,8 +527,7 @@ def test_the_interval_full_search_agrees_with_the_running_sum():
     from sins_align_ros.align.engines.aided import MAX_PREDICT
     P0, Qc = model_noise(15, [1e-3] * 3, 0.1, 1.0, (DPH, 0.0), (100 * UG, 0.0), 0.0, 0.0,
                          100.0, 1000.0)
-    eng = IntegratedNavigation(np.eye(3), np.zeros(3), LAT, 0.0, 0.0, P0, Qc, np.eye(6),
-                               method='kf')
+    eng = engine_class('kf')(np.eye(3), np.zeros(3), LAT, 0.0, 0.0, P0, Qc, np.eye(6))
     rng = np.random.default_rng(5)
     cases = [(0.0, np.full(100, 0.01)), (1.0, np.full(100, 0.01)), (1.0, np.full(99, 0.01)),
              (1.9999999999, np.full(3, 1e-11)), (0.5, rng.uniform(0.0, 0.02, 4096)),

@@ -11,7 +11,7 @@ first turn at 1010 s), where the old KF had about a tenth of its 1-s samples bey
 import numpy as np
 import pytest
 
-from sins_align_ros.align.engines.navigation import HEADING_CLAIM_MAX_DEG
+from sins_align_ros.align.engines.heading_range import HEADING_CLAIM_MAX_DEG
 from sins_align_ros.eval.run import run_scenario
 from sins_align_ros.filters.cubature import batched
 from sins_align_ros.filters.linear_kf import linear

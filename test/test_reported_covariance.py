@@ -15,7 +15,8 @@ import pytest
 from sins_align_ros.align.inputs.gnss_fix import GnssFix, uses_reported_covariance
 from sins_align_ros.align.engines.gnss_markov import white_equivalent_var
 from sins_align_ros.align.engines.moving import MovingBaseAlignment
-from sins_align_ros.align.engines.navigation import IntegratedNavigation, model_noise
+from sins_align_ros.align.engines.navigation import model_noise
+from sins_align_ros.align.engines.registry import engine_class
 from sins_align_ros.align import params as prm
 from sins_align_ros.eval.integrity import run_integrity
 from sins_align_ros.eval.run import run_pipeline
@@ -34,8 +35,8 @@ def _nav(method, use_reported_cov=True):
     P0, Qc = model_noise(15 if method != 'ukf' else 18, [1e-3] * 3, 0.1, 1.0, (DPH, 0.0),
                          (100 * UG, 0.0), 0.0, 0.0, 100.0, 1000.0)
     R = np.diag([1.0, 1.0, 4.0, 0.01, 0.01, 0.04])
-    return IntegratedNavigation(np.eye(3), np.zeros(3), LAT, 0.0, 0.0, P0, Qc, R,
-                                method=method, use_reported_cov=use_reported_cov)
+    return engine_class(method)(np.eye(3), np.zeros(3), LAT, 0.0, 0.0, P0, Qc, R,
+                                use_reported_cov=use_reported_cov)
 
 
 def _moving(use_velocity):

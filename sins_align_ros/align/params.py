@@ -9,22 +9,16 @@ from dataclasses import dataclass
 
 import yaml
 
-FINE_FILTERS = ('reduced7', 'stationary10', 'stationary12', 'ckf', 'asckf', 'ukf',
-                'vbakf', 'mvbakf', 'vbckf', 'vbch', 'kf')
-#: fine filters implemented in this version (all of docs/design.md's, and ``kf``)
-AVAILABLE_FINE_FILTERS = FINE_FILTERS
+from .filter_table import AIDED, NAVIGATION, ROBUST, STILL, Names
+
+#: the fine filters (views of the one table, :mod:`.filter_table`): all of them
+FINE_FILTERS = AVAILABLE_FINE_FILTERS = Names()
 #: the values of ``fine_filter``: a filter, or ``auto`` (chosen from what the data show)
-FILTER_CHOICES = ('auto',) + FINE_FILTERS
-#: the stationary (zero-velocity) filters of seed 002
-STILL_FILTERS = ('reduced7', 'stationary10', 'stationary12')
-#: the moving-base filters on seed 004's 12-state model (GNSS velocity measurement)
-ROBUST_FILTERS = ('vbckf', 'vbch')
-#: the integrated-navigation filters (seed 001's 15 states, seed 003's 18-state UKF): they
-#: align and then go on navigating
-NAV_FILTERS = ('kf', 'vbakf', 'mvbakf', 'ukf')
-#: fine filters for a moving base with GNSS aiding (seed 000; vbckf/vbch: seed 004; the
-#: navigation filters)
-MOVING_FILTERS = ('ckf', 'asckf') + ROBUST_FILTERS + NAV_FILTERS
+FILTER_CHOICES = Names(head=('auto',))
+#: seed 002's stationary filters; seed 004's robust ones; the integrated navigation
+#: (seeds 001/003: they align and then go on navigating); every GNSS-aided one
+STILL_FILTERS, ROBUST_FILTERS, NAV_FILTERS = Names(STILL), Names(ROBUST), Names(NAVIGATION)
+MOVING_FILTERS = Names(*AIDED)
 COARSE_METHODS = ('auto', 'analytic', 'inertial_frame')
 PREPROCESS_WAVELETS = ('sym8', 'sym4', 'db4', 'db8', 'coif2')
 

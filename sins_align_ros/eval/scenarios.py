@@ -1,17 +1,13 @@
 """Named scenarios and the simulation of a whole run."""
+from ..align.filter_table import FILTERS
 from ..sim.presets import SENSOR_GRADES, scenario
 from ..sim.scenario import ScenarioStream
 
 
 #: every fine filter (and ``auto``) -> a scenario it applies to, for whole-pipeline timings
-#: and comparisons (bench/replay_speed.py, test_kernels.py)
-FILTER_SCENARIOS = {
-    'reduced7': 'static_navigation', 'stationary10': 'static_navigation',
-    'stationary12': 'static_navigation', 'ckf': 'seed000_case1', 'asckf': 'seed000_case1',
-    'vbckf': 'seed004_medium', 'vbch': 'seed004_medium', 'kf': 'seed003_car',
-    'vbakf': 'seed001_flight', 'mvbakf': 'seed001_flight', 'ukf': 'seed003_car',
-    'auto': 'seed003_car',
-}
+#: and comparisons (bench/replay_speed.py, test_kernels.py): its paper's (the filter table)
+FILTER_SCENARIOS = {**{name: row.scenario for name, row in FILTERS.items()},
+                    'auto': 'seed003_car'}
 
 
 def named(spec, duration=None):

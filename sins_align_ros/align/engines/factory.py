@@ -1,4 +1,9 @@
-"""The one mapping from ``fine_filter`` names to fine-alignment engines.
+"""Fine-alignment engines from parameter values: each family's constructor arguments.
+
+The engine class of a ``fine_filter`` is its row's (:mod:`.registry`: the filter table
+says the family, the class names the row); this module turns the parameter values into
+the family's constructor arguments, adds the class's own (``options(cfg)``) and the parts
+every aided engine shares (gates, model errors, the GNSS Gauss-Markov error).
 
 Every engine offers ``mech`` (the strapdown state), ``P``, ``attitude_cov()``,
 ``widen(var_phi, var_v)``, ``status()`` and the flags ``navigates`` and
@@ -11,20 +16,16 @@ import math
 import numpy as np
 
 from .. import params as prm
+from ..filter_table import FILTERS, MOVING, NAVIGATION, ROBUST, STILL
 from ..inputs.gnss_fix import uses_reported_covariance
 from .gnss_gate import GnssGate
-from .moving import MovingBaseAlignment, model_noise as moving_model_noise
-from .navigation import (HEADING_LINEAR_MAX_DEG, IntegratedNavigation, gyro_tau,
-                         model_noise as nav_model_noise)
-from .robust import RobustAlignment, model_noise as robust_model_noise
-from .stationary import StationaryEngine
+from .moving import model_noise as moving_model_noise
+from .navigation import gyro_tau, model_noise as nav_model_noise
+from .registry import engine_class
+from .robust import model_noise as robust_model_noise
 from ...models.stationary import NoiseSpec, StationaryModel
 from ...nav import earth
 from ...units import DPH, DPSH, UG
-
-
-#: largest heading sigma handed to the UKF (rad); see :func:`_navigation`
-UKF_HEADING_SIGMA_MAX = math.radians(30.0)
 
 
 def noise_spec(cfg):
@@ -58,14 +59,13 @@ def make_engine(cfg, noise, start, has_velocity, heading_known=True):
     attitude covariance at output.
     """
     ff = cfg['fine_filter']
-    if not is_aided(ff):
-        eng = StationaryEngine(StationaryModel(ff), noise, start.C_b_n, start.sigma,
-                               start.position, zero_velocity_sigmas(cfg),
-                               1.0 / cfg['fine_update_hz'])
+    cls = engine_class(ff)
+    family = FILTERS[ff].family
+    if family == STILL:
+        eng = cls(StationaryModel(ff), noise, start.C_b_n, start.sigma, start.position,
+                  zero_velocity_sigmas(cfg), 1.0 / cfg['fine_update_hz'])
         eng.heading_gate = _heading_gate(cfg)
         return eng, eng.floor, []
-    C, v_n, sigma, s_v = start.C_b_n, start.v_n, start.sigma, start.sigma_v
-    lat, lon, h = start.position
     # drift states: a random constant, plus a random walk that lets them follow a
     # Gauss-Markov bias of the given sigma and correlation time (2 sigma^2 / tau)
     q_drift = 2.0 * (cfg['gyro_bias_instability_dph'] * DPH) ** 2 / cfg['gyro_bias_tau_s']
@@ -73,31 +73,8 @@ def make_engine(cfg, noise, start, has_velocity, heading_known=True):
                                   else cfg['gnss_gate_probability']),
                 gate_max_rejects=cfg['gnss_gate_max_rejects'])
     warnings = []
-    if ff in prm.ROBUST_FILTERS:
-        P0, Qc = robust_model_noise(sigma, s_v, noise, q_drift)
-        R = np.eye(3) * cfg['gnss_vel_sigma_mps'] ** 2
-        if not has_velocity:
-            warnings.append(f'{ff} measures the GNSS velocity: no velocity has arrived yet '
-                            '(fixes reset the position only)')
-        eng = RobustAlignment(C, v_n, lat, lon, h, P0, Qc, R, robust=ff == 'vbch',
-                              rho=cfg['vb_forgetting'], n_iter=cfg['vb_iterations'],
-                              C=cfg['vbch_c'], dof=cfg['vb_outlier_dof'] or None, **gate)
-    elif ff in prm.NAV_FILTERS:
-        eng = _navigation(cfg, noise, C, v_n, lat, lon, h, sigma, s_v, gate)
-    else:
-        s_p = cfg['gnss_pos_sigma_m']
-        # seed 000's 10 states + the accelerometer bias (a random constant: no parameter
-        # gives an accelerometer bias instability)
-        P0, Qc = moving_model_noise(sigma, s_v, s_p, noise, q_drift)
-        use_vel = bool(cfg['use_gnss_velocity'] and has_velocity)
-        R = [s_p ** 2] * 2 + ([cfg['gnss_vel_sigma_mps'] ** 2] * 2 if use_vel else [])
-        asckf = ff == 'asckf'
-        eng = MovingBaseAlignment(
-            C, v_n, lat, lon, h, P0, Qc, np.diag(R), use_velocity=use_vel,
-            square_root=asckf, fading=asckf and cfg['asckf_fading'],
-            adaptive=asckf and cfg['asckf_adaptive'], adapt_q=cfg['asckf_adapt_q'],
-            b=cfg['asckf_forgetting'], use_reported_cov=cfg['use_reported_gnss_covariance'],
-            hold_lost_heading=cfg['course_heading'], **gate)
+    eng = _AIDED[family](cls, cfg, noise, start, has_velocity, q_drift, gate, warnings)
+    lat, h = start.position[0], start.position[2]
     eng.heading_gate = _heading_gate(cfg)
     eng.set_rotation_error(cfg['gyro_scale_factor_ppm'] * 1e-6,
                            cfg['gyro_misalignment_ppm'] * 1e-6)
@@ -128,31 +105,55 @@ def _heading_gate(cfg):
     return GnssGate(None if p >= 1.0 else p, cfg['gnss_gate_max_rejects'], (1,), name='heading')
 
 
-def _navigation(cfg, noise, C, v_n, lat, lon, h, sigma, s_v, gate):
-    """Seed 001's 15-state (kf, vbakf, mvbakf) or seed 003's 18-state (ukf) engine."""
-    ff = cfg['fine_filter']
-    n = 18 if ff == 'ukf' else 15
-    # a coarse heading beyond the model's range is lost until found again (navigation.py)
-    cap = UKF_HEADING_SIGMA_MAX if ff == 'ukf' else math.radians(HEADING_LINEAR_MAX_DEG)
-    lost = bool(sigma[2] > cap)
-    if ff == 'ukf':
-        # sigma points sit at +-sqrt(n) sigma: a 90 deg heading sigma puts them 380 deg out,
-        # around the circle, and the tilt collapses (still MEMS IMU: tilt 10 sigma off).
-        # The heading is published as unknown above 10 deg anyway (navigation.py)
-        sigma = np.minimum(sigma, [np.inf, np.inf, UKF_HEADING_SIGMA_MAX])
+def _moving(cls, cfg, noise, start, has_velocity, q_drift, gate, warnings):
+    """Seed 000's engine (:mod:`.moving`): 10 states + the accelerometer bias."""
+    s_p = cfg['gnss_pos_sigma_m']
+    # seed 000's 10 states + the accelerometer bias (a random constant: no parameter
+    # gives an accelerometer bias instability)
+    P0, Qc = moving_model_noise(start.sigma, start.sigma_v, s_p, noise, q_drift)
+    use_vel = bool(cfg['use_gnss_velocity'] and has_velocity)
+    R = [s_p ** 2] * 2 + ([cfg['gnss_vel_sigma_mps'] ** 2] * 2 if use_vel else [])
+    return cls(start.C_b_n, start.v_n, *start.position, P0, Qc, np.diag(R),
+               use_velocity=use_vel, adapt_q=cfg['asckf_adapt_q'], b=cfg['asckf_forgetting'],
+               use_reported_cov=cfg['use_reported_gnss_covariance'],
+               hold_lost_heading=cfg['course_heading'], **gate, **cls.options(cfg))
+
+
+def _robust(cls, cfg, noise, start, has_velocity, q_drift, gate, warnings):
+    """Seed 004's engine (:mod:`.robust`): 12 states, the GNSS velocity measured."""
+    P0, Qc = robust_model_noise(start.sigma, start.sigma_v, noise, q_drift)
+    R = np.eye(3) * cfg['gnss_vel_sigma_mps'] ** 2
+    if not has_velocity:
+        warnings.append(f'{cfg["fine_filter"]} measures the GNSS velocity: no velocity has '
+                        'arrived yet (fixes reset the position only)')
+    return cls(start.C_b_n, start.v_n, *start.position, P0, Qc, R, rho=cfg['vb_forgetting'],
+               n_iter=cfg['vb_iterations'], C=cfg['vbch_c'], dof=cfg['vb_outlier_dof'] or None,
+               **gate, **cls.options(cfg))
+
+
+def _navigation(cls, cfg, noise, start, has_velocity, q_drift, gate, warnings):
+    """Seed 001's 15-state or seed 003's 18-state engine (:mod:`.navigation`)."""
+    n = cls.n_states
+    # a coarse heading beyond the model's range is lost until found again (heading_range.py)
+    lost = bool(start.sigma[2] > cls.heading_sigma_max)
+    sigma = cls.prior_sigma(start.sigma)
     gyro = (cfg['gyro_bias_dph'] * DPH, cfg['gyro_bias_instability_dph'] * DPH)
     accel = (cfg['accel_bias_ug'] * UG, 0.0)
     tau_g = gyro_tau(n, gyro, cfg['gyro_bias_tau_s'])
-    P0, Qc = nav_model_noise(n, sigma, s_v, max(cfg['gnss_pos_sigma_m'],
-                                                cfg['gnss_height_sigma_m']),
+    P0, Qc = nav_model_noise(n, sigma, start.sigma_v, max(cfg['gnss_pos_sigma_m'],
+                                                          cfg['gnss_height_sigma_m']),
                              gyro, accel, noise.gyro_arw, noise.accel_vrw,
                              tau_g, cfg['accel_bias_tau_s'], q_scale=cfg['nav_q_scale'])
     R = np.diag([cfg['gnss_pos_sigma_m'] ** 2] * 2 + [cfg['gnss_height_sigma_m'] ** 2]
                 + [cfg['gnss_vel_sigma_mps'] ** 2] * 3)
-    return IntegratedNavigation(
-        C, v_n, lat, lon, h, P0, Qc, R, method=ff, tau_g=tau_g,
-        tau_a=cfg['accel_bias_tau_s'], rho=cfg['nav_forgetting'],
-        n_iter=cfg['nav_iterations'], tau=cfg['mvbakf_tau'], moment=cfg['mvbakf_moment'],
-        use_velocity=cfg['use_gnss_velocity'], use_reported_cov=uses_reported_covariance(cfg),
+    return cls(
+        start.C_b_n, start.v_n, *start.position, P0, Qc, R, tau_g=tau_g,
+        tau_a=cfg['accel_bias_tau_s'], use_velocity=cfg['use_gnss_velocity'],
+        use_reported_cov=uses_reported_covariance(cfg),
         track_heading_sigma_deg=cfg['track_heading_sigma_deg'],
-        track_min_speed_mps=cfg['track_min_speed_mps'], heading_lost=lost, **gate)
+        track_min_speed_mps=cfg['track_min_speed_mps'], heading_lost=lost, **gate,
+        **cls.options(cfg))
+
+
+#: family -> the builder of its engines' constructor arguments
+_AIDED = {MOVING: _moving, ROBUST: _robust, NAVIGATION: _navigation}

@@ -402,3 +402,26 @@ class MovingBaseAlignment(GyroScaleStates, GnssAidedEngine):
     def _gnss_fix(gnss, i):
         """Epoch ``i`` of the arrays given to :meth:`feed` (position only)."""
         return GnssFix(gnss.t[i], gnss.lat[i], gnss.lon[i], gnss.h[i])
+
+
+class CKFAlignment(MovingBaseAlignment):
+    """``ckf``: seed 000's conventional cubature KF (eq. 22-34)."""
+
+    fine_filter = 'ckf'
+
+    @staticmethod
+    def options(cfg):
+        """Return the constructor's filter options: no square root, fading or adaptation."""
+        return dict(square_root=False, fading=False, adaptive=False)
+
+
+class ASCKFAlignment(MovingBaseAlignment):
+    """``asckf``: seed 000's square-root CKF with fading factors and Sage-Husa noise."""
+
+    fine_filter = 'asckf'
+
+    @staticmethod
+    def options(cfg):
+        """Return the square root with fading and adaptation as parameter values ``cfg`` say."""
+        return dict(square_root=True, fading=cfg['asckf_fading'],
+                    adaptive=cfg['asckf_adaptive'])

@@ -13,58 +13,13 @@ Markov parts of the compensation decay with their correlation time, as the expec
 value of a first-order Markov process does, so the residual error keeps the model's
 dynamics.
 
-Large heading errors with a poor gyro (issue 21; not in the seeds, whose model assumes a
-small misalignment and a tactical IMU). On seed 001's flight with a MEMS IMU (200 deg/h
-gyro bias) the 15-state filters published 8-15 deg of heading sigma over a heading
-54 deg off. Two causes, two remedies:
+Large heading errors with a poor gyro (issue 21): the force the model takes, the heading
+variance held within the linear model's range, a lost heading found again by a nonlinear
+acquisition, the heading claimed only within the linearisation: :mod:`.heading_range`.
 
-* Spurious heading information. The horizontal specific force enters the error model
-  only when it is beyond 5 sigma of what the filter's own tilt and accelerometer
-  variances put on it, and a dropped force's heading term joins the velocity process
-  noise (:mod:`.force`, shared by every aided family; a MEMS ship turning at 1 deg/s
-  otherwise read its rotating accelerometer bias as heading, 15-30 deg off under a
-  4-6 deg sigma).
-* A heading error beyond the small-angle range. The linear filters (``kf``, ``vbakf``,
-  ``mvbakf``) hold the heading variance at :data:`HEADING_LINEAR_MAX_DEG` (1-sigma;
-  sin and 1 - cos of a 3-sigma error stay within 10 % / 0.3 rad of the linear model)
-  by scaling its row and column (P stays positive semi-definite); beyond that a
-  linear update at the next turn would read a 100-deg error as a small one and corrupt
-  tilt and gyro bias with it (the KF's tilt went 60 deg off). When the variance had to
-  be held, the heading is lost to the linear model: at the next GNSS epoch with a
-  velocity of at least ``track_min_speed_mps`` it is taken afresh from the GNSS track,
-  as the coarse stage does (the vehicle's nose along its velocity; 1-sigma
-  ``track_heading_sigma_deg``), a nonlinear re-acquisition that keeps position,
-  velocity, tilt and sensor estimates. Where the filter has since found a heading
-  better than the track's (its sigma below ``track_heading_sigma_deg``: manoeuvres did
-  it) and the track agrees with it within 3 sigma, the filter's is kept and only the
-  mark is cleared: a boat's track is off its heading by its crab and sway, and a mark
-  left standing from the start had a USV in severe sea throw away a heading known to
-  14' for a track 48 deg off, 220 s later. The UKF (``ukf``, seed 003) keeps the heading
-  error nonlinear in its model instead (seed 004 eq. 3) and keeps its own force.
-* A lost heading is found again by a nonlinear acquisition only. While the heading is
-  lost (held at the linear range, or handed over by the coarse stage beyond it: above
-  :data:`HEADING_LINEAR_MAX_DEG` for ``kf``, above the UKF's 30-deg prior cap for
-  ``ukf``) the error model is given the vertical specific force alone
-  (:meth:`_drop_horizontal_force`); the horizontal force's velocity error is process noise
-  of an unknown angle. The linear model would read the turns' accelerations in the GNSS
-  velocity as heading information it cannot hold: a skid-steer robot at 1 m/s with
-  Doppler velocity (robot:consumer, raw AHRS triads) started its fine stage 50-170 deg off
-  (no track at 1 m/s, a coarse heading of an unknown angle), and within 8-12 s ``kf`` and
-  ``ukf`` alike claimed 7-9 deg of sigma about it, their tilt was pulled 5-10 deg off
-  under 0.8 deg in the turns, the vertical gyro drift estimate walked and the heading
-  swept at 1-2 deg/s (4-8 silent-wrong runs of 10 per cell); the course heading aid,
-  a bootstrap, never fed it since the heading looked found. The heading is found again
-  by the GNSS track (above ``track_min_speed_mps``, below), a straight leg's course
-  (:mod:`.course_heading`, taken directly) or an external heading taken directly. It
-  waits for one at most :data:`~.force.LOST_WAIT_S` (two of the longest legs); a vehicle that
-  offers none in that time is left to the linear model's own convergence, as before: a
-  MEMS USV rolling in a seaway below the track speed (seed 004, no straight leg) had its
-  heading found by it from 45 deg off (1-1.4 deg RMS at the end), and held lost it ended
-  unknown, 55 deg off.
-* The claim. The heading goes out with the filter's variance only while its 1-sigma is
-  at most :data:`HEADING_CLAIM_MAX_DEG`, where the linearisation holds; above it the
-  heading is published as unknown (variance pi^2/3, the fine stage's unknown angle),
-  so a heading the model cannot represent is never claimed (:meth:`attitude_cov`).
+The filter is the engine class's (:meth:`IntegratedNavigation._make_filter`): seed 001's
+KF, VBAKF and MVBAKF and seed 003's UKF are the classes of :mod:`.navigation_filters`,
+each naming its row of the filter table (``fine_filter``, :mod:`..filter_table`).
 
 The IMU-rate driver and the GNSS bookkeeping (intervals without a fix, the innovation
 gate with forced acceptances) are :class:`~.aided.GnssAidedEngine`'s. The
@@ -75,29 +30,17 @@ import math
 
 import numpy as np
 
-from ...filters.cubature import batched
-from ...filters.linear_kf import KF, linear
-from ...filters.mvbakf import MVBAKF
-from ...filters.ukf import UKF
-from ...filters.vbakf import VBAKF
-from ...models import large_misalignment as lm
+from ...filters.linear_kf import linear
 from ...models import loosely_coupled as lc
 from ...nav import earth
-from ...nav.frames import (dcm_to_euler, euler_to_dcm, orthonormalize, reorthonormalize,
-                           rotvec_to_dcm, wrap_pi)
+from ...nav.frames import orthonormalize, reorthonormalize, rotvec_to_dcm
 from ...units import DPH, UG
 from .aided import GnssAidedEngine
-from .force import ANGLE_UNKNOWN_VAR
 from .gnss_gate import GnssGate
 from .gyro_scale import GyroScaleStates
-from ..params import NAV_FILTERS
-
-#: heading 1-sigma (deg) up to which the linear filters' small-angle model holds
-HEADING_LINEAR_MAX_DEG = 15.0
-#: heading 1-sigma (deg) above which the heading is published as unknown
-HEADING_CLAIM_MAX_DEG = 10.0
-HEADING_LINEAR_MAX_VAR = math.radians(HEADING_LINEAR_MAX_DEG) ** 2
-HEADING_CLAIM_MAX_VAR = math.radians(HEADING_CLAIM_MAX_DEG) ** 2
+from .heading_range import (HEADING_CLAIM_MAX_VAR, HEADING_LINEAR_MAX_DEG,
+                            HEADING_LINEAR_MAX_VAR, HeadingRange)
+from .heading_range import HEADING_CLAIM_MAX_DEG  # noqa: F401  (bench/navigation_mems.py's)
 
 
 def gyro_tau(n_states, gyro, tau_g):
@@ -146,8 +89,11 @@ def model_noise(n_states, sigma_phi, sigma_v, sigma_p, gyro, accel, gyro_arw, ac
     return P0, Qc
 
 
-class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
+class IntegratedNavigation(HeadingRange, GyroScaleStates, GnssAidedEngine):
     """Mechanization + seed 001/003 filter; see the module docstring.
+
+    The base of the navigation engines: a subclass makes the filter
+    (:meth:`_make_filter`) and names its row of the filter table (``fine_filter``).
 
     Parameters
     ----------
@@ -159,13 +105,8 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
         ``(Phi diag(Qc) Phi^T + diag(Qc)) T / 2``.
     R : ndarray (6, 6)
         Measurement noise, position E, N, U (m^2) then velocity E, N, U ((m/s)^2).
-    method : str
-        One of :data:`NAV_FILTERS`.
     tau_g, tau_a : float
         Correlation times of the Markov gyro and accelerometer errors, s.
-    rho, n_iter, tau, moment
-        VB forgetting factor, fixed-point iterations, MVBAKF's P(k|k-1) tuning factor and
-        posterior moment (:class:`~sins_align_ros.filters.mvbakf.MVBAKF`).
     use_velocity : bool
         Measure GNSS velocity when the epoch has one.
     gate_probability, gate_max_rejects
@@ -181,33 +122,31 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
         ``mvbakf``, whose R is their own estimate.
     heading_lost : bool
         The heading handed over is beyond the model's range (an unknown angle): lost
-        until a nonlinear acquisition finds it (module docstring).
+        until a nonlinear acquisition finds it (:mod:`.heading_range`).
+    **options
+        The filter's own (:meth:`options`, :meth:`_make_filter`).
     """
 
     i_phi, i_v = lc.I_PHI, lc.I_V
     navigates = True
     MEAS_ENU = np.arange(6)             # position then velocity, each E, N, U
+    #: states of the seed model: seed 001's 15 (seed 003's 18:
+    #: :class:`~.navigation_filters.UnscentedNavigation`)
+    n_states = 15
+    #: largest coarse heading sigma (rad) the model takes: beyond it the heading is handed
+    #: over lost (:mod:`.heading_range`)
+    heading_sigma_max = math.radians(HEADING_LINEAR_MAX_DEG)
 
-    def __init__(self, C_b_n, v_n, lat, lon, h, P0, Qc, R, method='mvbakf', tau_g=300.0,
-                 tau_a=3600.0, rho=0.95, n_iter=5, tau=6.0, moment='mean', use_velocity=True,
-                 gate_probability=None, gate_max_rejects=10, track_heading_sigma_deg=10.0,
-                 track_min_speed_mps=2.0, use_reported_cov=False, heading_lost=False):
-        if method not in NAV_FILTERS:
-            raise ValueError(f'unknown navigation filter {method!r}')
-        self.method = method
+    def __init__(self, C_b_n, v_n, lat, lon, h, P0, Qc, R, tau_g=300.0, tau_a=3600.0,
+                 use_velocity=True, gate_probability=None, gate_max_rejects=10,
+                 track_heading_sigma_deg=10.0, track_min_speed_mps=2.0, use_reported_cov=False,
+                 heading_lost=False, **options):
         #: states of the seed model (15 or 18); ``n`` adds the gyro scale factors once
         #: modelled (:mod:`.gyro_scale`)
         self.n0 = self.n = len(P0)
         x0 = np.zeros(self.n)
         Q = np.diag(np.asarray(Qc, dtype=float))
-        if method == 'kf':
-            kf = KF(x0, P0, Q, R)
-        elif method == 'vbakf':
-            kf = VBAKF(x0, P0, Q, R, rho=rho, n_iter=n_iter)
-        elif method == 'mvbakf':
-            kf = MVBAKF(x0, P0, Q, R, tau=tau, rho=rho, n_iter=n_iter, moment=moment)
-        else:
-            kf = UKF(x0, P0, Q, R)
+        kf = self._make_filter(x0, P0, Q, R, **options)
         kf_sets_R = not getattr(kf, 'estimates_R', False)
         self.tau_g, self.tau_a = float(tau_g), float(tau_a)
         self.i_eps = lc.I_EPS15 if self.n0 == 15 else lc.I_EPSB
@@ -231,6 +170,20 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
                          gate=GnssGate(gate_probability, gate_max_rejects, sizes=(3, 6)),
                          use_velocity=use_velocity, attitude_sums=True,
                          use_reported_cov=use_reported_cov and kf_sets_R)
+
+    @staticmethod
+    def options(cfg):
+        """Return the filter's constructor options from parameter values ``cfg`` (none)."""
+        return {}
+
+    @classmethod
+    def prior_sigma(cls, sigma):
+        """Return the coarse attitude sigma (3,) rad the model is given (``sigma`` itself)."""
+        return sigma
+
+    def _make_filter(self, x0, P0, Q, R, **options):
+        """Return the filter of state ``x0`` (n,), ``P0``, ``Q`` (n, n), ``R`` (6, 6)."""
+        raise NotImplementedError('a navigation engine class makes its filter')
 
     # -- IMU rate ---------------------------------------------------------------------
     def _correct_imu(self, dtheta, dv, dt):
@@ -269,8 +222,8 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
             f_n = self._drop_horizontal_force(f_n, m.lat, m.h, HEADING_LINEAR_MAX_VAR)
             if self._unmodelled_acc_var > 0.0 and self._under_way:
                 self.kf.consider = self._tilt_considered()
-        elif self.method != 'ukf':
-            f_n = self._model_force(f_n, m.lat, m.h)
+        else:
+            f_n = self._interval_force(f_n, m.lat, m.h)
         F = lc.F_matrix(C, f_n, v_n, m.lat, m.h, self.tau_g, self.tau_a, self.n0)
         w_b = None
         if self.i_sf is not None:          # gyro scale-factor states (:mod:`.gyro_scale`)
@@ -279,80 +232,15 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
             self._scale_columns(F, C, w_b)
         self._F = F
         self._Phi = lc.transition(self._F, T)
-        if self.method == 'ukf':
-            sub = max(1, int(math.ceil(T / 1.0)))
-            args = (f_n, v_n, C, m.lat, m.h, self.tau_g, self.tau_a, T)
-            return batched(lambda X: lc.propagate18(X, *args, substeps=sub, w_b=w_b))
+        return self._propagation(f_n, v_n, C, T, w_b)
+
+    def _interval_force(self, f_n, lat, h):
+        """Return the specific force (3,) the model takes: the significant part (:mod:`.force`)."""
+        return self._model_force(f_n, lat, h)
+
+    def _propagation(self, f_n, v_n, C, T, w_b):
+        """Return the interval's propagation for the filter: the linear ``Phi``."""
         return linear(self._Phi)
-
-    def _tilt_considered(self):
-        """Return the consider mask (n,) of the tilt states (a lost heading, a real force).
-
-        The velocity error ``(C(psi) - I) f_h`` of a heading error anywhere in the circle
-        is one direction for as long as the force keeps it (a turn, a braking): the
-        velocity process noise covers each epoch's share, but epoch after epoch the same
-        drift reads as a tilt error (``g phi`` is one too). With RTK velocities the KF
-        took it so: a skid-steer robot (robot:rtk, raw AHRS) had its tilt pulled 2.5-5 deg
-        off under 0.6 deg within 10 s of the fine stage's start (3 of 5 runs silent-wrong).
-        Over such intervals under way (the fix's velocity beyond 3 of its sigmas, see
-        :meth:`measurement`; without GNSS velocity never) the tilt is a consider state
-        (Schmidt): not corrected, its variance carried honestly; it is observed again once
-        the force is gone or the heading found. Not from a seed.
-        """
-        mask = np.zeros(self.n, dtype=bool)
-        mask[np.arange(self.n)[lc.I_PHI][:2]] = True
-        return mask
-
-    def _interval_ended_bound(self):
-        """Hold a linear filter's heading variance within the model's range (module docstring)."""
-        if self.method == 'ukf':
-            return
-        P = self.kf.P
-        if P[2, 2] > HEADING_LINEAR_MAX_VAR:
-            s = np.ones(self.n)
-            s[2] = math.sqrt(HEADING_LINEAR_MAX_VAR / P[2, 2])
-            self.kf.P = P * np.outer(s, s)
-            self.n_heading_held += 1
-            self.heading_lost = True
-
-    def _reacquire_heading(self, fix):
-        """Take the heading from the GNSS track of ``fix`` when it was lost (module docstring)."""
-        if not self.heading_lost or fix is None or fix.v_n is None:
-            return
-        v = np.asarray(fix.v_n, dtype=float)
-        if math.hypot(v[0], v[1]) < self.track_min_speed:
-            return
-        m = self.mech
-        eul = dcm_to_euler(m.C_b_n)
-        track = math.atan2(v[1], v[0])
-        self.heading_lost = False
-        var_track = self.track_heading_sigma ** 2
-        var_psi = float(self.kf.P[2, 2])
-        if var_psi < var_track and wrap_pi(track - eul[2]) ** 2 <= 9.0 * (var_psi + var_track):
-            # the filter has since found a heading better than the track's, and the track
-            # agrees with it (within crab and sway): keep the filter's
-            return
-        eul[2] = track
-        m.C_b_n = euler_to_dcm(eul)
-        P = self.kf.P.copy()
-        P[2, :] = P[:, 2] = 0.0
-        P[2, 2] = self.track_heading_sigma ** 2
-        self.kf.P = P
-        self.n_heading_reacquired += 1
-
-    def _heading_taken(self):
-        """Mark the heading found: an external heading was taken directly."""
-        self.heading_lost = False
-
-    def inflate(self, factor):
-        """Inflate as every aided engine does, then hold the heading in the linear range."""
-        super().inflate(factor)
-        self._interval_ended_bound()
-
-    def widen(self, var_phi, var_v):
-        """Widen as every aided engine does, then hold the heading in the linear range."""
-        super().widen(var_phi, var_v)
-        self._interval_ended_bound()
 
     def _set_process_noise(self):
         """Q of the interval: trapezoid of ``Phi Qc Phi^T`` and ``Qc`` over its length T."""
@@ -398,7 +286,7 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
         H[np.arange(len(idx)), self.rows[idx]] = 1.0
         return dict(P=self.kf.P.copy(), Phi=Phi, Q=self._process_noise(Phi, T), H=H,
                     R=np.asarray(self.kf.R)[np.ix_(idx, idx)], T=T, i_phi=self.i_phi,
-                    heading_cap=None if self.method == 'ukf' else HEADING_LINEAR_MAX_VAR,
+                    heading_cap=self.heading_cap,
                     heading_claim=HEADING_CLAIM_MAX_VAR)
 
     # -- GNSS epochs --------------------------------------------------------------------
@@ -435,10 +323,7 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
         """Feed the whole estimate back (module docstring); the error state becomes zero."""
         m, kf = self.mech, self.kf
         x = kf.x
-        if self.method == 'ukf':
-            m.C_b_n = reorthonormalize(lm.C_n_nprime(x[lc.I_PHI]).T @ m.C_b_n)
-        else:
-            m.C_b_n = reorthonormalize(rotvec_to_dcm(x[lc.I_PHI]) @ m.C_b_n)
+        m.C_b_n = reorthonormalize(self._attitude_correction(x[lc.I_PHI]) @ m.C_b_n)
         m.correct_velocity(x[lc.I_V].copy())
         R_M, R_N = earth.radii(m.lat)
         m.correct_position(np.array([x[7] / (R_M + m.h), x[6] / ((R_N + m.h) * math.cos(m.lat)),
@@ -464,27 +349,6 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
         i = np.r_[6:9, 3:6, 0:3]
         return self.kf.P[np.ix_(i, i)]
 
-    def attitude_cov(self):
-        """Misalignment covariance about ENU (3, 3), rad^2; the heading unknown beyond the claim.
-
-        While the filter's heading 1-sigma is above :data:`HEADING_CLAIM_MAX_DEG` the
-        heading is published as an angle anywhere in the circle (variance pi^2/3, no
-        cross terms; module docstring).
-        """
-        P = self.kf.P[self.i_phi, self.i_phi]
-        if P[2, 2] > HEADING_CLAIM_MAX_VAR:
-            P = P.copy()
-            P[2, :2] = P[:2, 2] = 0.0
-            P[2, 2] = ANGLE_UNKNOWN_VAR
-        else:
-            P = self._heading_floor(P)
-        return P
-
-    @property
-    def heading_claimed(self):
-        """Tell whether the heading is published with the filter's variance (not unknown)."""
-        return bool(self.kf.P[2, 2] <= HEADING_CLAIM_MAX_VAR)
-
     @property
     def gyro_bias(self):
         """Current gyro-error compensation, body axes, rad/s (3,)."""
@@ -500,6 +364,9 @@ class IntegratedNavigation(GyroScaleStates, GnssAidedEngine):
         s['heading_held_epochs'] = self.n_heading_held
         s['heading_from_track'] = self.n_heading_reacquired
         s.update(self.scale_status())
-        if isinstance(self.kf, MVBAKF):
-            s['P_pred_trace_ratio'] = self.kf.p_ratio
         return s
+
+    @staticmethod
+    def _attitude_correction(phi):
+        """Return the DCM (3, 3) the estimated misalignment ``phi`` (3,) rad applies."""
+        return rotvec_to_dcm(phi)

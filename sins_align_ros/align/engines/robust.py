@@ -149,3 +149,25 @@ class RobustAlignment(GnssAidedEngine):
         if kf.robust:
             s['robust_gamma'] = kf.gamma
         return s
+
+
+class VBCKFAlignment(RobustAlignment):
+    """``vbckf``: seed 004's variational-Bayes cubature filter."""
+
+    fine_filter = 'vbckf'
+
+    @staticmethod
+    def options(cfg):
+        """Return the constructor's filter option: the VB cubature filter, not VBCH."""
+        return dict(robust=False)
+
+
+class VBCHAlignment(RobustAlignment):
+    """``vbch``: seed 004's cubature H-infinity filter with the adaptive robust factor."""
+
+    fine_filter = 'vbch'
+
+    @staticmethod
+    def options(cfg):
+        """Return the constructor's filter option: VBCH."""
+        return dict(robust=True)
