@@ -28,7 +28,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))      # this checkout's package, not an installed copy
 
-from sins_align_ros.align.engines.navigation import HEADING_CLAIM_MAX_DEG  # noqa: E402
+from sins_align_ros.align.engines.heading_range import HEADING_CLAIM_MAX_DEG  # noqa: E402
 from sins_align_ros.eval.markdown import machine_summary, write_markdown  # noqa: E402
 from sins_align_ros.eval.pool import monte_carlo  # noqa: E402
 from sins_align_ros.eval.run import run_scenario  # noqa: E402

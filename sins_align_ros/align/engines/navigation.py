@@ -40,7 +40,6 @@ from .gnss_gate import GnssGate
 from .gyro_scale import GyroScaleStates
 from .heading_range import (HEADING_CLAIM_MAX_VAR, HEADING_LINEAR_MAX_DEG,
                             HEADING_LINEAR_MAX_VAR, HeadingRange)
-from .heading_range import HEADING_CLAIM_MAX_DEG  # noqa: F401  (bench/navigation_mems.py's)
 
 
 def gyro_tau(n_states, gyro, tau_g):
