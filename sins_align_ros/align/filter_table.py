@@ -32,7 +32,10 @@ class FilterRow:
     ``family``: one of :data:`FAMILIES`; ``seed``: the paper in ../shared/seeds/
     (``'002'``); ``states``, ``use``: its line in docs/filters.md; ``scenario``: the
     :func:`~sins_align_ros.sim.presets.scenario` preset of its paper; ``checked_on``: the
-    presets the integrity matrix runs it on, in table order.
+    presets the integrity matrix runs it on, in table order; ``reported_covariance``: its
+    engine sets R each epoch and may take it from the GNSS messages
+    (``use_reported_gnss_covariance``); not the variational-Bayes filters, whose R is their
+    own posterior.
     """
 
     name: str
@@ -42,6 +45,7 @@ class FilterRow:
     use: str
     scenario: str
     checked_on: tuple
+    reported_covariance: bool = False
 
 
 #: name -> :class:`FilterRow`, in family order (the order of every list derived from it)
@@ -128,10 +132,10 @@ for _row in (
     FilterRow('ckf', MOVING, '000', '13: large-azimuth model (velocity, position, '
               'misalignment, gyro drift) + accel bias', 'moving base with GNSS, conventional '
               'cubature KF', 'seed000_case1', ('static_navigation', 'ship_sway',
-                                               'seed000_case1')),
+                                               'seed000_case1'), reported_covariance=True),
     FilterRow('asckf', MOVING, '000', '13: as `ckf`', 'moving base with GNSS whose noise may '
               'change; large heading errors', 'seed000_case1',
-              ('static_navigation', 'ship_sway', 'seed000_case1')),
+              ('static_navigation', 'ship_sway', 'seed000_case1'), reported_covariance=True),
     FilterRow('vbckf', ROBUST, '004', '12: large misalignment (misalignment, 3-D velocity, '
               'gyro drift, accel bias)', 'USV in severe sea, GNSS velocity with outliers',
               'seed004_medium', ('static_navigation', 'seed004_medium')),
@@ -139,13 +143,13 @@ for _row in (
               'robustness', 'seed004_medium', ('static_navigation', 'seed004_medium')),
     FilterRow('kf', NAVIGATION, '001', '15: loosely coupled (misalignment, velocity, '
               'position, Markov gyro and accel errors)', 'align, then keep navigating '
-              '(`~/odom`)', 'seed003_car', _NAV_ON),
+              '(`~/odom`)', 'seed003_car', _NAV_ON, reported_covariance=True),
     FilterRow('vbakf', NAVIGATION, '001', '15: as `kf`', 'navigating when the GNSS noise is '
               'unknown or changes (seed 001\'s baseline)', 'seed001_flight', _NAV_ON),
     FilterRow('mvbakf', NAVIGATION, '001', '15: as `kf`', 'as `vbakf`, with P(k\\|k-1) and '
               'a full R estimated', 'seed001_flight', _NAV_ON),
     FilterRow('ukf', NAVIGATION, '003', '18: as `kf` with a constant and a Markov gyro drift',
               'a car with a MEMS IMU and a large heading error after coarse alignment',
-              'seed003_car', _NAV_ON),
+              'seed003_car', _NAV_ON, reported_covariance=True),
 ):
     add(_row)

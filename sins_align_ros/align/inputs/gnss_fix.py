@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..filter_table import FILTERS
+
 
 @dataclass
 class GnssFix:
@@ -31,22 +33,17 @@ class GnssFix:
     arm_var: np.ndarray = None
 
 
-#: the filters that take R from the GNSS messages (``use_reported_gnss_covariance``): those
-#: whose R the engine sets, seed 000's family and the 15/18-state ``kf`` and ``ukf``; not
-#: the variational-Bayes filters (``vbakf``, ``mvbakf``, ``vbckf``, ``vbch``), whose R is
-#: their own posterior, nor ``asckf`` while its Sage-Husa estimator sets R
-REPORTED_COV_FILTERS = ('ckf', 'asckf', 'kf', 'ukf')
-
-
 def uses_reported_covariance(cfg):
     """Tell whether the engine of ``cfg['fine_filter']`` takes R from the GNSS messages.
 
-    :data:`REPORTED_COV_FILTERS`, when ``use_reported_gnss_covariance`` is on (``asckf``
-    only without adaptation).
+    The filters whose row in the filter table says ``reported_covariance`` (seed 000's
+    family and the 15/18-state ``kf`` and ``ukf``), when ``use_reported_gnss_covariance``
+    is on; ``asckf`` only without adaptation (its Sage-Husa estimator sets R otherwise).
     """
     ff = cfg['fine_filter']
-    return bool(cfg['use_reported_gnss_covariance']) and ff in REPORTED_COV_FILTERS and not (
-        ff == 'asckf' and cfg['asckf_adaptive'])
+    row = FILTERS.get(ff)
+    return bool(cfg['use_reported_gnss_covariance']) and row is not None \
+        and row.reported_covariance and not (ff == 'asckf' and cfg['asckf_adaptive'])
 
 
 def gnss_sigma(cfg, name, reported):
