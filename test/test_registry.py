@@ -112,3 +112,11 @@ def test_the_docs_filter_table_is_the_registry():
     assert m, 'docs/filters.md has no <!-- filters --> block'
     assert m.group(1).strip() == markdown_table(), (
         'docs/filters.md\'s filter table is stale; paste filter_table.markdown_table()')
+
+
+def test_the_readme_filter_table_names_every_row_with_its_seed():
+    """README's `fine_filter` table: `auto` plus exactly the registry's rows, seeds as theirs."""
+    readme = (ROOT / 'README.md').read_text()
+    rows = re.findall(r'^\| `(\w+)` \| ([\d-]+) \|', readme, re.M)
+    assert rows[0] == ('auto', '-')
+    assert {name: seed for name, seed in rows[1:]} == {n: r.seed for n, r in FILTERS.items()}
