@@ -66,7 +66,7 @@ epochs); ``white`` (the GNSS position error white only: no Gauss-Markov part); `
 ``nogyromis`` (no gyro axis misalignment; grades that have one); ``arw<N>`` (gyro white
 noise N deg/sqrt(h) instead of the grade's, vibration still as states: ``arw9`` and
 ``arw17`` are the self-check's figures for these vibrating triads over 60 s and over the
-motion check's 20 s, align/angle_walk.py: what a filter told that noise could claim at
+motion check's 20 s, align/stages/angle_walk.py: what a filter told that noise could claim at
 best); ``prior_loose``, ``prior_tight`` (the other attitude priors).
 Priors (1 sigma): ``A`` = 2 deg tilt, 10 deg heading (all variants but the two);
 ``loose`` = 5 deg, 30 deg; ``tight`` = 0.5 deg, 3 deg (a prior this close to the end sigma
