@@ -14,7 +14,8 @@ import numpy as np
 from sins_align_ros.align import params as prm
 from sins_align_ros.align.inputs.gnss_fix import GnssFix
 from sins_align_ros.align.stages.gnss_noise_check import (JITTER_CHUNK_S, JITTER_COUNTED,
-                                                          _velocity_jitter, velocity_jitter)
+                                                          _velocity_jitter, gm_shares,
+                                                          kept_share, velocity_jitter)
 from sins_align_ros.align.engines.moving import MovingBaseAlignment
 from sins_align_ros.align.stages.self_check import SelfCheck
 from sins_align_ros.sim.imu import ImuErrors, ImuSpec
@@ -56,8 +57,8 @@ def _expected(Phi, m, K):
 
 def test_jitter_reads_the_vibrations_bounded_velocity():
     """Vibration only (the robot's 1.5 m/s^2 per sample, 0.05 s): the Gauss-Markov velocity
-    ``sigma_x = A dt / sqrt(2 (1 - phi))`` (sim/imu.py, 0.051 m/s) as the quadratic over a
-    2-s piece leaves it, to the median's spread; and the part the fit takes is small."""
+    ``sigma_x = A dt / sqrt(2 (1 - phi))`` (sim/imu.py, 0.051 m/s), the share the quadratic
+    over a 2-s piece takes given back (:func:`kept_share`), to the median's spread."""
     spec = ImuSpec(vibration_accel_mps2=1.5, vibration_tau_s=0.05)
     seconds = 300.0
     t, dth, dv, dts = _still(spec, seconds)
@@ -67,9 +68,8 @@ def test_jitter_reads_the_vibrations_bounded_velocity():
     lag = np.abs(np.subtract.outer(np.arange(m), np.arange(m)))
     mean, tol = _expected(phi ** lag, m, int(seconds * RATE) // m)
     j = velocity_jitter(dth, dv, dts)
-    assert abs(j ** 2 / sigma_x ** 2 - mean) <= tol
-    # what the filter sees at each epoch is sigma_x: the estimate reads 9/10 of it or more
-    assert 0.9 * sigma_x < j < sigma_x
+    # the median's spread of the white-share reading (mean, tol), in units of its own mean
+    assert abs(j ** 2 / sigma_x ** 2 - 1.0) <= tol / mean
 
 
 def test_white_accelerometer_noise_is_no_jitter():
@@ -152,3 +152,54 @@ def test_the_jitter_goes_to_the_velocity_rows_and_is_lent_to_the_asckf():
     np.testing.assert_array_equal(seen[0], [0.0, 0.0, j * j, j * j])
     assert asckf.kf.R_lent is None
     assert _engine(True, 0.0)._lend_arm_noise(fix) is None
+
+
+def gm_velocity(rng, sigma, tau, n, dt):
+    """A Gauss-Markov velocity jitter (n + 1, 3), horizontal only, stationary from the start."""
+    phi = math.exp(-dt / tau)
+    v = np.zeros((n + 1, 3))
+    v[0, :2] = rng.normal(0.0, sigma, 2)
+    w = rng.normal(0.0, sigma * math.sqrt(1.0 - phi * phi), (n, 2))
+    for k in range(n):
+        v[k + 1, :2] = phi * v[k, :2] + w[k]
+    return v
+
+
+def test_a_jitter_correlated_over_its_pieces_is_read_whole():
+    """A jitter correlated over 0.3 s is read at its sigma, not at what a 2-s quadratic leaves.
+
+    60 s at 200 Hz: 30 pieces of 2 s, each holding about 2 s / (2 x 0.3 s) = 3.3 independent
+    values per axis, 6.7 over both: a piece's mean square spreads by sqrt(2 / 6.7) = 0.55,
+    the median of 30 by 1.25 x 0.55 / sqrt(30) = 0.13 in variance, 0.063 in sigma; 3 of
+    those bound the reading. Read as white noise (the share m - 3) it came out at about two
+    thirds of its sigma (0.07 for a 0.109 m/s jitter), far outside that bound.
+    """
+    rng = np.random.default_rng(11)
+    dt, n, sigma = 1.0 / 200.0, 12000, 0.1
+    for tau in (0.3, 0.05):
+        v = gm_velocity(rng, sigma, tau, n, dt)
+        dvv = np.diff(v, axis=0) + np.array([0.0, 0.0, 9.8]) * dt
+        j = velocity_jitter(np.zeros((n, 3)), dvv, np.full(n, dt))
+        assert abs(j / sigma - 1.0) < 3 * 0.063, (tau, j)
+
+
+def test_the_kept_share_is_the_gauss_markov_expectation():
+    """gm_shares against the mean over draws of a Gauss-Markov residual after a quadratic."""
+    rng = np.random.default_rng(12)
+    m, phi, draws = 60, 0.9, 4000
+    t = np.arange(m, dtype=float)
+    A = np.column_stack([np.ones(m), t, t * t])
+    Q = np.linalg.qr(A)[0]
+    x = np.zeros((draws, m))
+    x[:, 0] = rng.normal(size=draws)
+    for k in range(1, m):
+        x[:, k] = phi * x[:, k - 1] + math.sqrt(1 - phi * phi) * rng.normal(size=draws)
+    r = x - (x @ Q) @ Q.T
+    tr, lag1 = gm_shares(phi, Q)
+    ss = np.sum(r * r, axis=1)
+    # the sample mean of `draws` sums: its standard error, 4 of them as the bound
+    assert abs(np.mean(ss) - tr) < 4 * np.std(ss) / math.sqrt(draws)
+    lag = np.sum(r[:, 1:] * r[:, :-1], axis=1)
+    assert abs(np.mean(lag) - lag1) < 4 * np.std(lag) / math.sqrt(draws)
+    assert gm_shares(0.0, Q)[0] == m - 3
+    assert kept_share(Q, -1.0, 0.99) == m - 3        # white residuals: the white share exactly

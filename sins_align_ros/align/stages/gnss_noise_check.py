@@ -57,9 +57,13 @@ def velocity_jitter(dth, dvv, dts, chunk_s=JITTER_CHUNK_S):
     integrated in the initial body frame (:func:`~sins_align_ros.nav.coarse.velocity_integral_b0`),
     levelled by its own gravity integral, less its best quadratic over each ``chunk_s``
     seconds; the median over the pieces of their horizontal mean square (a piece with a
-    manoeuvre's jerk is one of many), with the fit's three degrees of freedom taken out.
-    Vibration bounded in velocity stays in it whole; white accelerometer noise of density
-    ``q`` leaves about ``0.2 q sqrt(chunk_s)``. NaN with fewer than 5 pieces.
+    manoeuvre's jerk is one of many), divided by the share of a jitter's variance the fit
+    leaves: the white ``m - 3`` where the residuals are white, more where they are
+    correlated (a Gauss-Markov jitter whose ``phi`` gives the residuals' median lag-1
+    autocorrelation, :func:`kept_share`: a vibration correlated over 0.3 s loses a third
+    of its variance to a 2-s quadratic, and read as white it hid a 0.109 m/s jitter as
+    0.07). White accelerometer noise of density ``q`` leaves about ``0.2 q sqrt(chunk_s)``.
+    NaN with fewer than 5 pieces.
     """
     m = int(round(chunk_s / float(np.mean(dts))))
     k = len(dth) // m if m > 3 else 0
@@ -73,7 +77,62 @@ def velocity_jitter(dth, dvv, dts, chunk_s=JITTER_CHUNK_S):
     A = np.column_stack([np.ones(m), t, t * t])
     res = V - np.einsum('ij,kjl->kil', A, np.einsum('ij,kjl->kil', np.linalg.pinv(A), V))
     horiz = res - (res @ up)[..., None] * up
-    return math.sqrt(float(np.median(np.sum(horiz * horiz, axis=(1, 2)))) / (2.0 * (m - 3)))
+    lag0 = np.sum(horiz * horiz, axis=(1, 2))
+    lag1 = np.sum(horiz[:, 1:] * horiz[:, :-1], axis=(1, 2))
+    rho = float(np.median(lag1[lag0 > 0] / lag0[lag0 > 0])) if np.any(lag0 > 0) else 0.0
+    kept = kept_share(np.linalg.qr(A)[0], rho, math.exp(-1.0 / (JITTER_TAU_MAX_SHARE * m)))
+    return math.sqrt(float(np.median(lag0)) / (2.0 * kept))
+
+
+#: the longest correlation time :func:`velocity_jitter` reads as a jitter, as a share of its
+#: pieces (2 s: 1 s); smoother residuals are read as before, as white (:func:`kept_share`)
+JITTER_TAU_MAX_SHARE = 0.5
+
+
+def gm_shares(phi, Q):
+    """Expected sums of a unit Gauss-Markov sequence's residual after a least-squares fit.
+
+    ``phi`` the correlation from one sample to the next, ``Q`` (m, p) an orthonormal
+    basis of the fitted columns (the residual is ``(I - Q Q^T) x``). Returns
+    ``(trace, lag1)``: ``E[sum r_i^2]`` and ``E[sum r_i r_i+1]``, i.e. ``tr(A C A)`` and
+    the sum of its first superdiagonal, ``A = I - Q Q^T``, ``C_ij = phi^|i - j|``, from
+    ``C Q`` alone (``tr = m - tr(Q^T C Q)``). White noise (``phi`` 0): ``(m - p, ...)``.
+    """
+    m = len(Q)
+    if not phi > 0.0:
+        return float(m - Q.shape[1]), float(-np.sum(Q[:-1] * Q[1:]))
+    i = np.arange(m)
+    C = phi ** np.abs(np.subtract.outer(i, i))
+    G = C @ Q
+    M = Q.T @ G
+    lag1 = ((m - 1) * phi - float(np.sum(Q[:-1] * G[1:])) - float(np.sum(G[:-1] * Q[1:]))
+            + float(np.sum((Q[:-1] @ M) * Q[1:])))
+    return m - float(np.trace(M)), lag1
+
+
+def kept_share(Q, rho, phi_max):
+    """Return ``E[sum r^2] / sigma^2`` of the Gauss-Markov jitter whose residual shows ``rho``.
+
+    ``rho``: the residuals' lag-1 autocorrelation (measured); the jitter's ``phi`` is the
+    one whose expected ratio ``lag1 / trace`` (:func:`gm_shares`) equals it, by bisection
+    (the ratio grows with ``phi``). White residuals (``rho`` at or below the white ratio)
+    keep the white share ``m - p`` exactly, and so do residuals smoother than a jitter
+    correlated over ``phi_max``: a velocity random walk (white accelerometer noise, which
+    the filters model as such) or a manoeuvre the quadratic does not follow, which are no
+    vibration to correct for (the cars' and ships' pieces: their readings unchanged).
+    """
+    tr0, lag0 = gm_shares(0.0, Q)
+    if not rho > lag0 / tr0:
+        return tr0
+    tr_hi, lag_hi = gm_shares(phi_max, Q)
+    if rho >= lag_hi / tr_hi:
+        return tr0
+    lo, hi = 0.0, phi_max
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        tr, lag = gm_shares(mid, Q)
+        lo, hi = (mid, hi) if lag / tr < rho else (lo, mid)
+    return gm_shares(0.5 * (lo + hi), Q)[0]
 
 
 def _regular(t):
