@@ -90,7 +90,7 @@ JITTER_TAU_MAX_SHARE = 0.5
 
 
 def gm_shares(phi, Q):
-    """Expected sums of a unit Gauss-Markov sequence's residual after a least-squares fit.
+    """Return the expected sums of a unit Gauss-Markov residual after a least-squares fit.
 
     ``phi`` the correlation from one sample to the next, ``Q`` (m, p) an orthonormal
     basis of the fitted columns (the residual is ``(I - Q Q^T) x``). Returns
