@@ -165,12 +165,14 @@ ALIGNMENT_PARAMS = (
     Param('max_stages', 3, 'staged re-initialisations of the stationary filter after '
           'convergence (seed 002 sec. 4; 1 = none), made only after an initial misalignment '
           'large enough for the first stage\'s linear model to leave an error', 1, 10),
-    Param('stage_min_duration', 30.0, 'minimum time of one fine-alignment stage, s',
-          5.0, 3600.0),
-    Param('aligned_max_tilt_sigma_deg', 1.0, 'aligned only while the roll and pitch 1-sigma '
-          'are at most this, deg (tilt_ready in the diagnostics)', 0.001, 90.0),
-    Param('aligned_max_heading_sigma_deg', 2.0, 'aligned only while the heading 1-sigma is at '
-          'most this, deg (heading_ready in the diagnostics)', 0.001, 180.0),
+    Param('stage_min_duration', 30.0, 'minimum time of one stationary fine-alignment stage '
+          '(a GNSS-aided stage is aligned once its estimate has settled), s', 5.0, 3600.0),
+    Param('aligned_max_tilt_sigma_deg', 1.0, 'aligned once the roll and pitch 1-sigma are at '
+          'most this, left when they exceed 1.2 times it, deg (tilt_ready in the '
+          'diagnostics)', 0.001, 90.0),
+    Param('aligned_max_heading_sigma_deg', 2.0, 'aligned once the heading 1-sigma is at most '
+          'this, left when it exceeds 1.2 times it, deg (heading_ready in the diagnostics)',
+          0.001, 180.0),
     Param('sensor_self_check', True, 'check the configured sensor model against the coarse '
           'window and widen it where the data contradict it (docs/design.md)'),
     Param('mounting_check_max_tilt_deg', 45.0, 'self-check: a vehicle frame tilted more '

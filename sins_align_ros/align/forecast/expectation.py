@@ -56,6 +56,7 @@ import numpy as np
 from ...nav import earth
 from ...nav.frames import dcm_to_euler, euler_cov_from_phi_cov
 from ..stages import coarse_stage
+from ..stages.aligned_gate import SETTLE_S
 from ..engines.factory import is_aided
 from ..stages.fine_stage import Clock
 from ..stages.handover import fine_stage_for
@@ -190,9 +191,10 @@ def _apply_rules(p, fine, t_abs, Pf):
     heading_known = fine.heading_known
     if not heading_known:
         max_head = -1.0
+    restages = fine.engine.restages
     i_al, i_tilt = first_aligned(t_abs, Pf, fine.monitor.t0, fine.converged,
-                                 cfg['stage_min_duration'], max_tilt, max_head,
-                                 fine.engine.restages)
+                                 cfg['stage_min_duration'] if restages else SETTLE_S,
+                                 max_tilt, max_head, restages)
     to_elapsed = t_abs - _t_first(p)
     sig = np.sqrt(np.maximum(Pf[-1 if i_al is None else i_al], 0.0))
     note = ''

@@ -115,6 +115,9 @@ class ConsistencyMonitor:
         #: NIS sum over degrees of freedom, and the test's bound on it, of the last test
         self.ratio = float('nan')
         self.bound = float('nan')
+        #: failed tests since the last one that passed (two: a clear failure,
+        #: :mod:`.aligned_gate`)
+        self.failed_in_row = 0
         self.n_inflations = 0
         self.n_r_inflations = 0
         #: measurement row -> factor for its noise variance, set when a failed test is
@@ -171,12 +174,14 @@ class ConsistencyMonitor:
         self.bound = chi2_quantile(self.probability, m) / m
         self.consistent = self.ratio <= self.bound
         if self.consistent:
+            self.failed_in_row = 0
             self._passes += 1
             # a whole window of passing tests since the last relaxation: the process
             # noise raised by earlier inflations may come back down
             self.relax = self._passes % self.window == 0
             return None
         self._passes = 0
+        self.failed_in_row += 1
         factor = min(max(float(np.median(self._raw)), self.ratio), MAX_INFLATION)
         self._nis.clear()
         self._dof.clear()
@@ -195,6 +200,17 @@ class ConsistencyMonitor:
         self.remedy = 'covariance and process noise inflated'
         self.n_inflations += 1
         return factor
+
+    @property
+    def clearly_inconsistent(self):
+        """Tell whether the failure is clear: the test failed again after the first's remedy.
+
+        (:mod:`.aligned_gate`: a single failure, answered by its remedy, keeps ``aligned``.
+        After a failure the window restarts, so the second test is on the innovations of the
+        remedied filter. A single failure is always marginal once the window slides: the
+        test runs at every epoch, so it fails at the first that tips the sum over.)
+        """
+        return not self.consistent and self.failed_in_row >= 2
 
     def _row_stats(self):
         """``(row, mean square over the window, lag-1 correlation)`` of rows with a window."""

@@ -10,8 +10,8 @@ motion (:mod:`.motion_check`) judges the IMU samples up to it, each opening the 
 model where the data disagree. A filter failure (:class:`~.gnss_gate.FilterDiverged`)
 comes back as its reason. Uses the stage's ``engine``, ``t0``, ``install``, ``headings``,
 ``consistency``, ``sideslip``, ``slow``, ``motion_check``, ``heading_known``,
-``attitude_cov()``, ``rate_var()`` and ``_epoch_done()``; of the engine, only what its
-contract declares (:class:`~..engines.base.Engine`; the GNSS epochs come to GNSS-aided
+``attitude_cov()``, ``rate_var()``, ``note_update()`` and ``_epoch_done()``; of the engine,
+only what its contract declares (:class:`~..engines.base.Engine`; the GNSS epochs come to GNSS-aided
 engines only, :class:`~..engines.base.AidedEngine`): the last epoch's record and the
 remedies, never its filter.
 """
@@ -76,10 +76,12 @@ class EpochUpdates:
             if fix is None:
                 return None
             w_up = float(self.engine.mech.C_b_n[2] @ np.asarray(dtheta)) / max(float(dt), 1e-6)
+            C_before = self.engine.mech.C_b_n.copy()
             try:
                 result = self.engine.update_heading(fix, t_now, w_up)
             except FilterDiverged as exc:
                 return str(exc)
+            self.note_update(t_now, C_before)
             self.headings.counts[result] += 1
             if result != 'rejected':
                 self.heading_known = True
@@ -171,10 +173,12 @@ class EpochUpdates:
                 fix = self.install.fix_to_imu(fix, self.engine.mech.C_b_n,
                                               np.asarray(dtheta) / dt, self.attitude_cov(),
                                               self.rate_var(dt))
+            C_before = self.engine.mech.C_b_n.copy()
             try:
                 upd = self.engine.update(fix, t_now)
             except FilterDiverged as exc:
                 return str(exc)
+            self.note_update(t_now, C_before)
             gnss.used(fix)
             self._check_sideslip(fix)
             self._check_long(fix, upd)

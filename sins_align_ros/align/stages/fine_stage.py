@@ -20,15 +20,16 @@ innovations do not show), and their IMU samples against the sensor model while t
 moves (:mod:`.motion_check`: vibration and turns the coarse window did not show).
 
 ``aligned`` means good enough for the user (docs/design.md: the attitude meets the user's
-thresholds and the consistency checks pass): the roll/pitch and heading 1-sigma must be
-within ``aligned_max_tilt_sigma_deg`` / ``aligned_max_heading_sigma_deg`` and the
-consistency monitor must pass; when either stops holding the phase goes back to
-``fine`` with the reason. Before that, the stage must have settled once: the
-still-base family's last stage must have converged (its convergence restages it), a
-GNSS-aided filter must have run ``stage_min_duration`` seconds. An aided filter's
-sigma may keep shrinking for minutes (a USV's heading from its sway, 14' and still
-falling at 300 s); waiting for it to stop, as the still-base stages do, left such runs
-``fine`` to the end with an attitude far inside the bounds. A heading the sensors
+thresholds and the consistency checks pass). It is declared at the first filter epoch
+where that is true and the estimate has settled, and left only on a clear failure
+(:mod:`.aligned_gate`, issue 46: hysteresis on the thresholds and on the consistency
+monitor, the hard conditions at once); ``why_not_aligned`` says why. A GNSS-aided stage
+has settled once its updates' corrections have shrunk to its sigma
+(:class:`~.aligned_gate.SettleTest`); a still-base stage once its last stage has
+converged (its convergence restages it). An aided filter's sigma may keep shrinking for
+minutes (a USV's heading from its sway, 14' and still falling at 300 s); waiting for it
+to stop, as the still-base stages do, left such runs ``fine`` to the end with an
+attitude far inside the bounds. A heading the sensors
 cannot observe (``heading_known`` False: a gyro that cannot see Earth rate at rest) is
 published with the variance of an unknown angle, :data:`HEADING_UNKNOWN_VAR`, and the
 roll/pitch variances are then at least ``tilt_bound``: with the heading unknown the
@@ -59,6 +60,7 @@ import numpy as np
 
 from ..engines.base import Engine
 from ..engines.prior_shaping import cap_angles
+from .aligned_gate import AlignedGate, rotation_vector
 from .consistency import ConsistencyMonitor
 from .convergence import ConvergenceMonitor
 from .fine_epochs import EpochUpdates
@@ -102,6 +104,10 @@ class FineStage(EpochUpdates):
         self.tilt_bound = float(tilt_bound)
         self.max_tilt = math.radians(cfg['aligned_max_tilt_sigma_deg'])
         self.max_heading = math.radians(cfg['aligned_max_heading_sigma_deg'])
+        #: the thresholds with their hysteresis (:mod:`.aligned_gate`)
+        self.gate = AlignedGate(self.max_tilt, self.max_heading)
+        #: why the stage last left ``aligned`` ('' if it has not)
+        self.left_reason = ''
         #: the stage has settled (latched; the module docstring): from then on the
         #: bounds and the consistency monitor decide
         self.converged = False
@@ -197,12 +203,15 @@ class FineStage(EpochUpdates):
             self._att_cov = P
         return self._att_cov
 
+    def sigmas(self):
+        """Return the published ``(tilt, heading)`` 1-sigma (rad): the worse of roll/pitch."""
+        P = self.attitude_cov()
+        return math.sqrt(max(P[0, 0], P[1, 1], 0.0)), math.sqrt(max(P[2, 2], 0.0))
+
     def readiness(self):
         """Return ``(tilt_ready, heading_ready)``: the 1-sigma within the ``aligned`` bounds."""
-        P = self.attitude_cov()
-        tilt = math.sqrt(max(P[0, 0], P[1, 1], 0.0)) <= self.max_tilt
-        heading = self.heading_known and math.sqrt(max(P[2, 2], 0.0)) <= self.max_heading
-        return tilt, heading
+        tilt, heading = self.gate.ready(*self.sigmas())
+        return tilt, self.heading_known and heading
 
     def why_not_aligned(self):
         """Return why the phase is not ``aligned`` ('' when it is)."""
@@ -219,10 +228,8 @@ class FineStage(EpochUpdates):
         tilt, heading = self.readiness()
         if self.moving:
             return self.moving
-        if self.mounting_doubt:
-            return 'vehicle frame far from level: imu_mounting_rpy_deg untold? (self-check)'
-        if not self.heading_known:
-            return 'heading unobservable'
+        if self.mounting_doubt or not self.heading_known:
+            return self._hard_reason()
         why = []
         if not self.consistency.consistent:
             why.append(f'innovations inconsistent (NIS/dof {self.consistency.ratio:.2f} > '
@@ -254,13 +261,35 @@ class FineStage(EpochUpdates):
             if not self.stepping.settled(t, sig_u):
                 return
             self.converged = True
-        ready = not self._ready_reason()
-        if self.phase == FINE and ready:
-            self.phase = ALIGNED
-            if self.t_aligned is None:
-                self.t_aligned = t
-        elif self.phase == ALIGNED and not ready:
+        if self.phase == FINE:
+            if not self._ready_reason():
+                self.phase = ALIGNED
+                if self.t_aligned is None:
+                    self.t_aligned = t
+            return
+        why = self._hard_reason() or self.gate.leave_reason(*self.sigmas(), self.consistency)
+        if why:                        # aligned, and a condition fails clearly
             self.phase = FINE
+            self.gate.n_left += 1
+            self.left_reason = why
+
+    def _hard_reason(self):
+        """Return why ``aligned`` must be left at once ('' if nothing; :mod:`.aligned_gate`)."""
+        if self.mounting_doubt:
+            return 'vehicle frame far from level: imu_mounting_rpy_deg untold? (self-check)'
+        if not self.heading_known:
+            return 'heading unobservable'
+        if self.slow is not None and self.slow.reason:
+            return self.slow.reason
+        return ''
+
+    def note_update(self, t, C_before):
+        """Record the attitude correction of the update just applied at ``t`` (settle test).
+
+        ``C_before`` (3, 3): the attitude before the update (:mod:`.aligned_gate`).
+        """
+        if self.stepping.settle is not None:
+            self.stepping.settle.add(t, rotation_vector(C_before, self.engine.mech.C_b_n))
 
     # -- stepping (by the engine's kind, :mod:`.fine_stepping`) --------------------------
     def run(self, t, dtheta, dv, i, gnss):

@@ -12,7 +12,8 @@ asking again:
 * :class:`AidedStepping` (an :class:`~..engines.base.AidedEngine`): the engine is stepped
   in compiled stretches (or sample by sample on the live path) up to the sample each queued
   GNSS epoch or external heading is due at (:mod:`.fine_epochs`); rows are cut where the
-  covariance changes. The stage has settled once it has run ``stage_min_duration``.
+  covariance changes. The stage has settled once its updates' corrections have shrunk to
+  its sigma (:class:`~.aligned_gate.SettleTest`).
 
 Each offers ``run`` (the block path), ``step`` (one sample), ``settled`` (the convergence
 rule) and ``moving`` (why the base is taken as moving, '' at rest). The two paths stay
@@ -24,6 +25,7 @@ import math
 import numpy as np
 
 from ..engines.base import AidedEngine, StillEngine
+from .aligned_gate import SettleTest
 from ..engines.gnss_gate import FilterDiverged
 from ..engines.still_watch import StillWatch
 from ..inputs.imu_input import intervals
@@ -38,6 +40,9 @@ GNSS_RECENT_S = 5.0
 
 class StillStepping:
     """Step a still-base engine by its own epochs (module docstring); owns the rest watch."""
+
+    #: a still-base stage settles when its heading sigma stops falling (no settle test)
+    settle = None
 
     def __init__(self, stage, cfg):
         self.stage = stage
@@ -147,11 +152,13 @@ class AidedStepping:
     def __init__(self, stage):
         self.stage = stage
         self.engine: AidedEngine = stage.engine
+        #: the updates' corrections (:class:`~.aligned_gate.SettleTest`)
+        self.settle = SettleTest(stage.t0)
 
     def settled(self, t, sigma_heading):
-        """Tell whether the stage has run ``stage_min_duration`` s by the epoch at ``t``."""
-        m = self.stage.monitor
-        return not t - m.t0 < m.min_duration
+        """Tell whether the estimate has settled by the epoch at ``t`` (:mod:`.aligned_gate`)."""
+        P = self.stage.attitude_cov()
+        return self.settle.settled(t, np.sqrt(np.maximum(P.diagonal(), 0.0)))
 
     def run(self, t, dtheta, dv, i, gnss):
         """Process samples from index ``i``: compiled stretches between the queued epochs.
