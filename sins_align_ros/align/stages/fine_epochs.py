@@ -11,8 +11,8 @@ model where the data disagree. A filter failure (:class:`~.gnss_gate.FilterDiver
 comes back as its reason. Uses the stage's ``engine``, ``t0``, ``install``, ``headings``,
 ``consistency``, ``sideslip``, ``slow``, ``motion_check``, ``heading_known``,
 ``attitude_cov()``, ``rate_var()``, ``note_update()`` and ``_epoch_done()``; of the engine,
-only what its contract declares (:class:`~..engines.base.Engine`; the GNSS epochs come to GNSS-aided
-engines only, :class:`~..engines.base.AidedEngine`): the last epoch's record and the
+only what its contract declares (:class:`~..engines.base.Engine`; the GNSS epochs come to
+GNSS-aided engines only, :class:`~..engines.base.AidedEngine`): the last epoch's record and the
 remedies, never its filter.
 """
 import numpy as np
