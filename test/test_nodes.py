@@ -230,7 +230,9 @@ def test_moving_base_diagnostics_carry_the_asckf_internals(ros_context):
     ex.add_node(probe)
     assert spin_until(ex, lambda: got, timeout_s=10.0)
     kv = {v.key: v.value for v in got[-1].status[0].values}
-    assert kv['phase'] == 'fine' and kv['fine_filter'] == 'asckf'
+    # the GNSS-aided fine stage, 20 s in: aligned once its estimate has settled inside the
+    # thresholds (issue 46), so either phase of that stage
+    assert kv['phase'] in ('fine', 'aligned') and kv['fine_filter'] == 'asckf'
     assert len(kv['fading_factors'].split()) == 13          # seed 000's 10 + accel bias
     assert len(kv['R_diag'].split()) == 4 and len(kv['Q_diag'].split()) == 13
     assert int(kv['divergence_test_fired']) >= 0 and float(kv['innovation_nis']) >= 0.0
