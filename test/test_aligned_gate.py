@@ -3,7 +3,8 @@
 The pieces against closed-form cases (the settle test's sums, the hysteresis bounds, the
 consistency monitor's run of failures), and the whole rule on the MEMS car with RTK that
 stands still and then drives: at most one ``aligned`` -> ``fine`` switch per run over
-10 seeds, every ``aligned`` row inside 3 sigma.
+10 seeds, every ``aligned`` row inside 3 sigma, and (with the coarse window ended by the
+motion, ``inputs/motion.Onset``) ``aligned`` within 20 s of the start of motion.
 """
 import math
 
@@ -30,28 +31,39 @@ def test_rotation_vector_is_the_small_rotation_between_two_attitudes():
     np.testing.assert_allclose(rotation_vector(C0, C1), phi, atol=1e-7)
 
 
-def test_settle_waits_its_span_then_compares_the_net_correction_with_sigma():
+def test_a_steady_correction_is_settled_after_two_spans():
+    """1 mrad at every 5-Hz update (a drift the engine compensates at its epochs, as seed
+    000's does): each span moves 25 mrad, more than the 10-mrad sigma, but the same in
+    both, so the estimate has settled, and not before two spans."""
     st = SettleTest(t0=100.0)
     sigma = np.full(3, 0.01)
-    for k in range(25):                      # 5 Hz, alternating corrections cancel
-        st.add(100.2 + 0.2 * k, np.full(3, 0.008) * (-1) ** k)
-    assert not st.settled(100.0 + SETTLE_S - 0.2, sigma)     # too early
-    assert st.settled(100.0 + SETTLE_S, sigma)
-    # corrections of one sign summing past the sigma: still converging
+    for k in range(60):
+        st.add(100.2 + 0.2 * k, np.array([0.001, -0.001, 0.0]))
+    assert not st.settled(100.0 + 2 * SETTLE_S - 0.2, sigma)     # too early
+    assert st.settled(100.0 + 2 * SETTLE_S, sigma)
+    np.testing.assert_allclose(np.abs(st.net(100.0 + 2 * SETTLE_S)), [0.025, 0.025, 0.0],
+                               atol=1e-12)
+
+
+def test_a_converging_correction_is_not_settled_until_it_has_died_down():
+    """Corrections 10 mrad e^(-t/3 s) at 5 Hz: the span sums are 5 Hz x 30 mrad s x
+    (e^(-a/3) - e^(-b/3)): (0, 5] 122 mrad, (5, 10] 23: they differ by 99 mrad, not
+    settled at 10 s; (10, 15] 4.3, (15, 20] 0.8: 3.5 mrad apart, settled at 20 s."""
     st = SettleTest(t0=0.0)
-    for k in range(25):
-        st.add(0.2 + 0.2 * k, np.array([0.001, 0.0, 0.0]))    # 25 x 1 mrad over 5 s
-    assert not st.settled(5.0, sigma)
-    assert st.settled(5.0, np.array([0.03, 0.01, 0.01]))
-    # they fall out of the window: 10 s later the last 5 s moved nothing
-    assert st.settled(15.0, sigma)
+    sigma = np.full(3, 0.01)
+    for k in range(1, 101):
+        t = 0.2 * k
+        st.add(t, np.full(3, 0.01 * math.exp(-t / 3.0)))
+        if t == pytest.approx(10.0):
+            assert not st.settled(t, sigma)
+    assert st.settled(20.0, sigma)
 
 
 def test_settle_ignores_an_axis_published_as_unknown():
     st = SettleTest(t0=0.0)
-    st.add(4.0, np.array([0.0, 0.0, 2.0]))
-    assert st.settled(5.0, np.array([0.01, 0.01, math.sqrt(ANGLE_UNKNOWN_VAR)]))
-    assert not st.settled(5.0, np.array([0.01, 0.01, 1.0]))
+    st.add(9.0, np.array([0.0, 0.0, 2.0]))
+    assert st.settled(10.0, np.array([0.01, 0.01, math.sqrt(ANGLE_UNKNOWN_VAR)]))
+    assert not st.settled(10.0, np.array([0.01, 0.01, 1.0]))
 
 
 class _Monitor:
@@ -119,3 +131,20 @@ def test_every_aligned_row_of_the_mems_car_lies_inside_3_sigma(car_runs):
         err = attitude_errors(run.out, run.truth_euler, al)
         inside = np.abs(err) <= 3.0 * run.out.sigma[al]
         assert inside.mean() >= 0.99, (seed, inside.mean(axis=0))
+
+
+def test_the_mems_car_is_aligned_within_20_s_of_starting_to_drive(car_runs):
+    """Issue 46's target for this car. The coarse window ends ``coarse_motion_s`` (5 s) after
+    GNSS shows the motion (a 5 Hz receiver: within one epoch and the 1-s motion test of
+    the truth's start), and the aided filter is ``aligned`` once settled inside the
+    thresholds: measured 11-13 s after the motion starts (was 60 s: the fixed 60-s window
+    and a 30-s stage minimum), bench/results/time_to_align.md."""
+    for seed, run in zip(SEEDS, car_runs):
+        t = run.out.t - run.data.imu.t[0]
+        speed = np.linalg.norm(run.data.imu.v_n[run.rows][:, :2], axis=1)
+        t_move = t[np.argmax(speed > 0.2)]
+        ph = np.asarray(run.out.phase)
+        t_fine = t[np.argmax(ph != 'coarse')]
+        assert t_move + 5.0 <= t_fine <= t_move + 5.0 + 1.5, (seed, t_move, t_fine)
+        t_al = t[np.argmax(ph == 'aligned')]
+        assert t_al - t_move <= 20.0, (seed, t_move, t_al)

@@ -12,7 +12,8 @@ import pytest
 
 from sins_align_ros.align.inputs.gnss_buffer import GnssBuffer
 from sins_align_ros.align.inputs.installation import Installation
-from sins_align_ros.align.inputs.motion import (DRIVE_DV_MPS, DRIVE_TURN_RAD, NEEDS_GNSS, Motion,
+from sins_align_ros.align.inputs.motion import (DRIVE_DV_MPS, DRIVE_TURN_RAD, NEEDS_GNSS,
+                                                REST_FOR_EARLY_END_S, Motion, Onset,
                                                 cannot_start, choose_filter, gnss_motion,
                                                 imu_translation, judge, watch)
 from sins_align_ros.align.params import defaults
@@ -173,3 +174,37 @@ def test_judge_takes_the_lever_arms_speed_off_the_gnss_speed():
     assert judge(g, _cfg(), roll).gnss
     m = judge(g, _cfg(), roll, mast)
     assert not m.gnss and m.speed == pytest.approx(0.3, rel=1e-9)
+
+
+def _onset(speeds, cfg, t0=0.0, rate=5.0):
+    """Feed GNSS velocities ``speeds`` (m/s east, at ``rate`` Hz from ``t0``) to an Onset."""
+    g, on = GnssBuffer(), Onset()
+    for k, v in enumerate(speeds):
+        t = t0 + k / rate
+        g.velocity_fix(t, [v, 0.0, 0.0], None)
+        on.fix(g, cfg, t)
+    return on
+
+
+def test_the_onset_of_motion_after_rest_ends_the_coarse_window_coarse_motion_s_later():
+    """Issue 46: 25 s at rest, then 3 m/s: the window that began at 0 ends 5 s after the
+    first message showing the motion (the motion over its last second above 0.5 m/s)."""
+    cfg = _cfg(coarse_motion_s=5.0)
+    rest, rate = 25.0, 5.0
+    on = _onset([0.0] * int(rest * rate) + [3.0] * 20, cfg)
+    assert on.t == pytest.approx(rest)
+    assert on.window_end(cfg, 0.0) == pytest.approx(rest + 5.0)
+    # too little rest before it for the self-check: the whole window
+    assert on.window_end(cfg, rest - REST_FOR_EARLY_END_S + 0.5) is None
+    # off
+    assert on.window_end(_cfg(coarse_motion_s=0.0), 0.0) is None
+
+
+def test_a_stop_before_the_motion_lasted_forgets_it_one_after_keeps_it():
+    """Decided by the messages in order (the replay's blocks and the node's samples alike):
+    a motion that stops within coarse_motion_s was not the start; one that lasted is kept."""
+    cfg = _cfg(coarse_motion_s=5.0)
+    short = _onset([0.0] * 125 + [3.0] * 10 + [0.0] * 10, cfg)      # 2 s of motion
+    assert short.t is None
+    lasted = _onset([0.0] * 125 + [3.0] * 30 + [0.0] * 10, cfg)     # 6 s, then a stop
+    assert lasted.t == pytest.approx(25.0)

@@ -104,7 +104,11 @@ ALIGNMENT_PARAMS = (
           'self-check skips its bias bounds, m/s', 0.05, 50.0),
     Param('coarse_method', 'auto', 'coarse alignment: analytic (still base), inertial_frame '
           '(sway, disturbance) or auto (picks by detecting motion)', choices=COARSE_METHODS),
-    Param('coarse_duration', 60.0, 'coarse alignment time, s', 1.0, 3600.0),
+    Param('coarse_duration', 60.0, 'coarse alignment time, s (at most: see coarse_motion_s)',
+          1.0, 3600.0),
+    Param('coarse_motion_s', 5.0, 'a coarse window that held 20 s of rest ends this long '
+          'after GNSS shows the base start moving (the moving-base coarse alignment takes '
+          'the heading from the motion); 0 = always coarse_duration, s', 0.0, 3600.0),
     Param('initial_latitude_deg', math.nan, 'latitude used without a GNSS fix, deg; .nan: not '
           'set: at rest the gyros estimate it where they see the Earth rate clearly (a '
           'navigation-grade IMU), else it is unknown, 0 is used and the heading is published '

@@ -12,6 +12,7 @@ every processed sample yields an output row (attitude, 1-sigma Euler angles, pha
   a still base or (GNSS-aided filters) a moving one;
 * :mod:`.gnss_buffer`: GNSS history and the queue of epochs waiting for the IMU;
 * :mod:`.motion`: whether GNSS shows the base moving; what ``fine_filter: auto`` runs;
+  when a base that rested and then drives ends its coarse window (``Onset``);
 * :mod:`.handover`: from the full coarse window to a running fine stage (the filter
   ``auto`` runs, the sensor self-check, the coarse attitude, the engine);
 * :mod:`.factory`: the engine of ``fine_filter`` (stationary seed 002; GNSS-aided
@@ -37,6 +38,7 @@ from .inputs.heading import HeadingBuffer
 from .inputs.installation import Installation
 from .output import Output, Rows, assemble, unknown
 from .inputs.preprocess import Preprocessor
+from .inputs.sample_store import SampleStore
 from .forecast.report import ConditionReport, pipeline_status
 
 WAITING, COARSE = 'waiting', 'coarse'
@@ -67,6 +69,8 @@ class AlignmentPipeline:
         #: the external heading (:mod:`.heading`)
         self.headings = HeadingBuffer(math.radians(cfg['heading_offset_deg']))
         self.n_restarts = 0
+        #: the last seconds of processed samples, for a restart to reuse
+        self.store = SampleStore()
         self.reset()
 
     def inherit_gnss(self, other):
@@ -90,6 +94,8 @@ class AlignmentPipeline:
         self.position = None
         self.warnings = []
         self.gnss.reset(keep_history=keep_gnss_history)
+        #: when GNSS showed the base start moving (the coarse window may end early)
+        self.onset = motion.Onset()
         if keep_gnss_history:
             self.headings.pending.clear()
         else:
@@ -175,8 +181,13 @@ class AlignmentPipeline:
         002 Table 1), from the recent fixes. GNSS-aided filters: every fix is also a
         measurement, applied when the IMU stream passes its stamp.
         """
+        coarse = self.fine is None
+        # queued in coarse alignment too: a fix stamped after the window's end (a replay's
+        # block reaches past it) is the fine filter's first epoch, as on the live path
         self.gnss.position_fix(t, lat_deg, lon_deg, h, pos_var, self.clock.t_last,
-                               queue=self.fine is not None and self.aided)
+                               queue=coarse or self.aided)
+        if coarse and self.clock.t_last is not None:
+            self.gnss.drop_pending(self.clock.t_last)
         self._watch_motion(t)
 
     def velocity_fix(self, t, v_n, vel_var=None):
@@ -185,12 +196,17 @@ class AlignmentPipeline:
         self._watch_motion(t)
 
     def _watch_motion(self, t):
-        """Restart when GNSS shows motion a running filter cannot take (:func:`motion.watch`)."""
+        """Restart when GNSS shows motion a running filter cannot take (:func:`motion.watch`).
+
+        Keeps when the motion began (:class:`~.motion.Onset`); a restart for it begins its
+        coarse window with the stored rest before it (:mod:`.sample_store`).
+        """
+        self.onset.fix(self.gnss, self.cfg, t)
         if self.fine is not None:
             reason = motion.watch(self.gnss, self.cfg, t, self.aided, self.fine.heading_known,
                                   self.install.speed_since(t - 3.0))
             if reason is not None:
-                self._diverged(reason)
+                self._diverged(reason, reuse=True)
 
     def heading_fix(self, t, yaw, var):
         """Record an external heading: the source's yaw (rad, REP-103) and its variance (rad^2).
@@ -199,7 +215,9 @@ class AlignmentPipeline:
         one as its heading; while a fine filter runs, each is a yaw measurement applied when
         the IMU stream passes its stamp (:mod:`.heading`).
         """
-        self.headings.add(t, yaw, var, self.clock.t_last, queue=self.fine is not None)
+        self.headings.add(t, yaw, var, self.clock.t_last, queue=True)
+        if self.fine is None and self.clock.t_last is not None:   # as position_fix's
+            self.headings.drop_pending(self.clock.t_last)
 
     def start_clock(self, t0):
         """Set the stamp that the first increment starts from (before the first process call)."""
@@ -249,6 +267,7 @@ class AlignmentPipeline:
         dtheta = np.atleast_2d(np.asarray(dtheta, dtype=float))
         dv = np.atleast_2d(np.asarray(dv, dtype=float))
         outs, i, n = [], 0, len(t)
+        self.store.push(t, dtheta, dv)
         while i < n:
             c = self.clock               # a restart (reset) replaces the clock
             if c.t_first is None:
@@ -256,12 +275,15 @@ class AlignmentPipeline:
                     c.t_last = t[i] - (t[i + 1] - t[i] if i + 1 < n else 0.01)
                 c.t_first = c.t_last
             if self.fine is None:
-                j = self.window.take(t, dtheta, dv, i, c.t_last)
-                c.t_last = t[j - 1]
+                self.window.t_end = self.onset.window_end(self.cfg, c.t_first)
+                # (a restart's window, begun with stored samples, may be complete already)
+                j = i if self.window.full else self.window.take(t, dtheta, dv, i, c.t_last)
+                if j > i:
+                    c.t_last = t[j - 1]
                 out = unknown(t[i:j], COARSE)
                 if self.window.full:
                     self._finish_coarse()
-                    if self.fine is not None:         # else degenerate: coarse again
+                    if self.fine is not None and j > i:   # else degenerate: coarse again
                         out.phase[-1] = FINE
                         self._fill_last(out)
                 outs.append(out)
@@ -323,8 +345,10 @@ class AlignmentPipeline:
         self.warnings.extend(start.warnings)
         self.fine = start.fine
         self.install = start.install
-        # fixes that came in during coarse alignment are history, not measurements
-        self.gnss.pending.clear()
+        # fixes that came in during coarse alignment are history, not measurements; those
+        # stamped after its last sample are the aided filter's
+        self.gnss.drop_pending(self.clock.t_last if self.aided else math.inf)
+        self.headings.drop_pending(self.clock.t_last)
 
     def _fill_last(self, out):
         """Put the coarse result into the last row of a coarse block."""
@@ -332,10 +356,29 @@ class AlignmentPipeline:
         out.q[-1], out.euler[-1], out.sigma[-1], out.P_phi[-1] = r.q[0], r.euler[0], \
             r.sigma[0], r.P_phi[0]
 
-    def _diverged(self, reason):
-        """Restart from coarse alignment after a filter failure, keeping GNSS history."""
+    def _diverged(self, reason, reuse=False):
+        """Restart from coarse alignment after a filter failure, keeping GNSS history.
+
+        ``reuse`` (GNSS shows the base start moving): the new coarse window begins with the
+        stored samples from the rest before the motion (:mod:`.sample_store`), and the
+        motion's onset is kept, so that the window may end soon after it.
+        """
         t = self.clock.t_last
+        onset = self.onset
         self.reset(keep_gnss_history=True)
         self.clock.t_last = t
         self.n_restarts += 1
+        self.warnings.append(f'{reason}: alignment restarted from coarse')
+        if not reuse or onset.t is None:
+            return
+        # the rest the early end needs, but no more than leaves the window room for the
+        # motion's coarse_motion_s (a short coarse_duration)
+        cfg = self.cfg
+        kept = self.store.since(max(onset.t - motion.REST_FOR_EARLY_END_S - 1.0,
+                                    onset.t + cfg['coarse_motion_s'] - cfg['coarse_duration']))
+        if kept is None or kept[1][-1] > t + 1e-9:
+            return
+        self.onset = onset
+        self.window.prefill(*kept)
+        self.clock.t_first = kept[0]
         self.warnings.append(f'{reason}: alignment restarted from coarse')

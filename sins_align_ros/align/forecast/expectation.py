@@ -193,7 +193,7 @@ def _apply_rules(p, fine, t_abs, Pf):
         max_head = -1.0
     restages = fine.engine.restages
     i_al, i_tilt = first_aligned(t_abs, Pf, fine.monitor.t0, fine.converged,
-                                 cfg['stage_min_duration'] if restages else SETTLE_S,
+                                 cfg['stage_min_duration'] if restages else 2.0 * SETTLE_S,
                                  max_tilt, max_head, restages)
     to_elapsed = t_abs - _t_first(p)
     sig = np.sqrt(np.maximum(Pf[-1 if i_al is None else i_al], 0.0))

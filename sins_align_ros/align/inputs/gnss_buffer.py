@@ -95,6 +95,11 @@ class GnssBuffer:
             self.vels.popleft()
 
     # -- the fine filter's epochs -----------------------------------------------------------
+    def drop_pending(self, t):
+        """Forget the queued epochs stamped at or before ``t`` (coarse alignment's history)."""
+        while self.pending and self.pending[0][0] <= t + 1e-9:
+            self.pending.popleft()
+
     def due(self, t):
         """Tell whether a queued epoch is stamped at or before ``t``."""
         return bool(self.pending) and self.pending[0][0] <= t + 1e-9
@@ -139,21 +144,34 @@ class GnssBuffer:
         return None, None
 
     # -- the coarse stage ---------------------------------------------------------------------
-    def position(self, cfg, aided):
+    def last_fix_until(self, t):
+        """Return the last fix stamped at or before ``t`` as ``last_fix`` has it, or None.
+
+        (A replay's block may have brought fixes past the coarse window's last sample.)
+        """
+        if t is None or self.last_fix is None or self.last_fix[0] <= t + 1e-9:
+            return self.last_fix
+        for t_f, lat, lon, h, _ in reversed(self.fixes):
+            if t_f <= t + 1e-9:
+                return (t_f, lat / DEG, lon / DEG, h)
+        return None
+
+    def position(self, cfg, aided, t=None):
         """Latitude, longitude (rad), height (m) for the fine filter, and the source name.
 
         Stationary models: the median of the recent fixes, so that an outlier or a
-        short jump does not set their latitude. Aided filters: the last fix (the
-        filter's innovation gate judges the fixes that follow; ``aided``). Without a fix (or
-        with ``use_gnss_position`` off): the ``initial_*`` parameters; with
+        short jump does not set their latitude. Aided filters: the last fix at or before
+        ``t`` (the filter's innovation gate judges the fixes that follow; ``aided``).
+        Without a fix (or with ``use_gnss_position`` off): the ``initial_*`` parameters; with
         ``initial_latitude_deg`` not set (NaN) the latitude is 0 and the source
         ``latitude_not_set``: the sensor self-check then estimates it from the gyros in
         place (the hand-over then names the source ``gyro_latitude``), or says it is
         unknown (:mod:`.self_check`).
         """
-        if cfg['use_gnss_position'] and self.recent_fixes:
+        last = self.last_fix_until(t)
+        if cfg['use_gnss_position'] and self.recent_fixes and (last is not None or not aided):
             if aided:
-                la, lo, h = self.last_fix[1:]
+                la, lo, h = last[1:]
             else:
                 la, lo, h = np.median(np.array(self.recent_fixes), axis=0)
             src = 'gnss'

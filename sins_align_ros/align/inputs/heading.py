@@ -156,6 +156,11 @@ class HeadingBuffer:
                 return fix if fix.t >= t_end - COARSE_MAX_AGE_S else None
         return None
 
+    def drop_pending(self, t):
+        """Forget the queued epochs stamped at or before ``t`` (coarse alignment's history)."""
+        while self.pending and self.pending[0].t <= t + 1e-9:
+            self.pending.popleft()
+
     def due(self, t):
         """Tell whether a queued epoch is stamped at or before ``t``."""
         return bool(self.pending) and self.pending[0].t <= t + 1e-9

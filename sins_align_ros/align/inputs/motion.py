@@ -13,6 +13,16 @@ the specific force integrated in the initial body frame leaves a smooth (quadrat
 curve by metres per second, or the body turns by tens of degrees, where sway and
 disturbance give centimetres per second and a few degrees (a constant velocity stays
 invisible). Then no filter can align without GNSS, and the pipeline says so.
+
+A base that rests and then drives (a car at a traffic light, a robot waiting for its
+mission) need not wait out the coarse window once it moves (issue 46): :class:`Onset`
+keeps when GNSS first showed the motion, and the window ends ``coarse_motion_s`` seconds
+after it, provided it held :data:`REST_FOR_EARLY_END_S` of rest before (the sensor
+self-check's noise and bias checks read the rest). The moving-base coarse alignment then
+takes its heading from those seconds (the GNSS track once faster than
+``track_min_speed_mps``, else the inertial-frame fit of the GNSS velocity change) and the
+GNSS-aided filter finds the rest in the manoeuvres that follow. A base moving from the
+start keeps the whole window: its self-check has no rest to read.
 """
 import math
 from dataclasses import dataclass
@@ -25,6 +35,8 @@ from ...nav.coarse import velocity_integral_b0
 DRIVE_DV_MPS = 1.0
 #: the body turns by more than this over the window, rad
 DRIVE_TURN_RAD = math.radians(30.0)
+#: a coarse window may end early only after this much rest before the motion began, s
+REST_FOR_EARLY_END_S = 20.0
 #: what a moving base without GNSS is told
 NEEDS_GNSS = ('the IMU shows the base moving (it {what}) and there is no GNSS: a moving base '
               'cannot be aligned without GNSS (publish gnss/fix, and gnss/vel if you have it) '
@@ -152,3 +164,32 @@ def imu_translation(window):
     if turn > DRIVE_TURN_RAD:
         return f'turns by {math.degrees(turn):.0f} deg'
     return None
+
+
+class Onset:
+    """When GNSS first showed the base moving in the current coarse window (module docstring).
+
+    Decided by the GNSS messages in their order alone, so that the replay's blocks and the
+    node's single samples end the window at the same sample: a motion that has lasted
+    ``coarse_motion_s`` is latched (a later stop does not undo an end already due).
+    """
+
+    def __init__(self):
+        #: stamp of the first GNSS message of the motion (s), None at rest
+        self.t = None
+
+    def fix(self, gnss, cfg, t):
+        """Take the GNSS message at ``t``: motion over its last second starts or ends the onset."""
+        moving, _ = gnss_motion(gnss, cfg, np.array([t - 1.0, t]))
+        if moving:
+            if self.t is None:
+                self.t = float(t)
+        elif self.t is not None and t < self.t + cfg['coarse_motion_s']:
+            self.t = None
+
+    def window_end(self, cfg, t_first):
+        """Return the stamp at which the coarse window begun at ``t_first`` ends early, or None."""
+        s, need = self.t, cfg['coarse_motion_s']
+        if s is None or not need > 0.0 or s - t_first < REST_FOR_EARLY_END_S:
+            return None
+        return s + need

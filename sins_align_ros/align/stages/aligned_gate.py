@@ -8,12 +8,15 @@ NIS/dof 1.68 against a bound of 1.66), so that anything waiting for it toggled t
 
 **Settled** (:class:`SettleTest`, GNSS-aided stages; a still-base stage still settles when
 its heading sigma stops falling, :mod:`.convergence`, since that is when it restages). The
-estimate has settled once the stage has run :data:`SETTLE_S` seconds and, over the last
-:data:`SETTLE_S` seconds, the attitude the filter's updates moved, summed per ENU axis
-with its sign, is at most :data:`SETTLE_SIGMAS` times that axis's published 1-sigma. A
-filter still pulling its attitude across by more than it claims to know it has not found
-it yet; one whose corrections have shrunk to its noise has (they then cancel in the
-sum). Latched for the stage.
+attitude the filter's updates move is summed per ENU axis, with its sign, over the last
+:data:`SETTLE_S` seconds and over the :data:`SETTLE_S` seconds before; the estimate has
+settled once the stage has run twice :data:`SETTLE_S` and the two sums differ by at most
+:data:`SETTLE_SIGMAS` times that axis's published 1-sigma. A filter still converging moves
+its attitude by less in each span than in the one before; one that has converged moves it
+by noise, or at a steady rate where it compensates an estimated drift at its epochs
+(seed 000's engine keeps the gyro drift in the filter, so each update turns the attitude
+by the drift over the interval: on raw MEMS AHRS triads about 0.9 deg every 5 s, which a
+test on the sum itself never passed). Latched for the stage.
 
 **Entered** at a filter epoch where the stage has settled and every condition holds: the
 roll/pitch and heading 1-sigma within ``aligned_max_tilt_sigma_deg`` /
@@ -75,23 +78,26 @@ class SettleTest:
         self._corr.append((float(t), np.asarray(phi, dtype=float)))
 
     def net(self, t):
-        """Return the corrections (3,) rad of the last :attr:`span_s` s up to ``t``, summed."""
+        """Return the corrections (3,) rad of the :attr:`span_s` s up to ``t``, summed.
+
+        (Stamps rise: corrections older than two spans before ``t`` are forgotten.)
+        """
         c = self._corr
-        while c and c[0][0] <= t - self.span_s:
+        while c and c[0][0] <= t - 2.0 * self.span_s:
             c.popleft()
-        return sum((p for _, p in c), np.zeros(3))
+        return sum((p for s, p in c if t - self.span_s < s <= t), np.zeros(3))
 
     def settled(self, t, sigma):
         """Tell whether the estimate has settled by ``t``; ``sigma`` (3,) the published 1-sigma.
 
         An angle published as unknown (:data:`~..output.ANGLE_UNKNOWN_VAR`) is not tested.
         """
-        if t - self.t0 < self.span_s:
+        if t - self.t0 < 2.0 * self.span_s:
             return False
-        net = np.abs(self.net(t))
+        change = np.abs(self.net(t) - self.net(t - self.span_s))
         sigma = np.asarray(sigma, dtype=float)
         tested = sigma * sigma < ANGLE_UNKNOWN_VAR
-        return bool(np.all(net[tested] <= self.sigmas * sigma[tested]))
+        return bool(np.all(change[tested] <= self.sigmas * sigma[tested]))
 
 
 class AlignedGate:

@@ -38,27 +38,53 @@ class CoarseResult:
 
 
 class CoarseWindow:
-    """The samples of the coarse window, ``duration`` seconds from ``t_first``."""
+    """The samples of the coarse window, ``duration`` seconds from ``t_first``.
+
+    ``t_end`` (set by the pipeline, :class:`~..inputs.motion.Onset`): the window also ends
+    with the first sample stamped at or after it.
+    """
 
     def __init__(self, duration):
         self.duration = float(duration)
         self.parts = []
         self.T = 0.0
+        self.t_end = None
+        self._ended = False
+        #: stamp of the last sample taken, None before any
+        self._t_last = None
 
     def take(self, t, dtheta, dv, i, t_last):
         """Take samples from index ``i`` until the window is full; returns the end index."""
         j, n = i, len(t)
         need = self.duration - self.T
-        while j < n and need > 1e-9:
+        t_end = math.inf if self.t_end is None else self.t_end
+        while j < n and need > 1e-9 and not self._ended:
             need -= t[j] - (t_last if j == i else t[j - 1])
+            self._ended = t[j] >= t_end
             j += 1
+        if j == i:
+            return j
         self.T += t[j - 1] - t_last
+        self._t_last = float(t[j - 1])
         self.parts.append((t[i:j], dtheta[i:j], dv[i:j]))
         return j
 
+    def prefill(self, t_before, t, dtheta, dv):
+        """Begin the window with samples already processed (a restart's, :mod:`.sample_store`).
+
+        ``t_before``: the stamp the first one's interval starts at; ``t`` (N,) stamps,
+        ``dtheta``, ``dv`` (N, 3) increments.
+        """
+        self.parts = [(t, dtheta, dv)]
+        self.T = float(t[-1] - t_before)
+        self._t_last = float(t[-1])
+
     @property
     def full(self):
-        return self.T >= self.duration - 1e-9
+        """Tell whether the window is complete (its duration, or its early end)."""
+        if self.t_end is not None and self._t_last is not None and self._t_last >= self.t_end:
+            self._ended = True
+        return self._ended or self.T >= self.duration - 1e-9
 
     def arrays(self, t_first):
         """Stamps (N,), increments (N, 3), (N, 3) and intervals (N,) of the window."""
@@ -241,8 +267,9 @@ def moving_base(window, cfg, noise, position, gnss, t_now, install=None):
         C = euler_to_dcm(eul)
         sigma[2] = cfg['track_heading_sigma_deg'] * DEG
         head_src = 'gnss_track'
-    if gnss.last_fix is not None and cfg['use_gnss_position']:
-        t_f = gnss.last_fix[0]
+    last = gnss.last_fix_until(t_now)
+    if last is not None and cfg['use_gnss_position']:
+        t_f = last[0]
         R_M, R_N = earth.radii(lat)
         # the antenna's position at the fix, moved to now; then to the IMU
         arm_n = np.zeros(3) if install is None else C @ install.l_v

@@ -24,7 +24,7 @@ thresholds and the consistency checks pass). It is declared at the first filter 
 where that is true and the estimate has settled, and left only on a clear failure
 (:mod:`.aligned_gate`, issue 46: hysteresis on the thresholds and on the consistency
 monitor, the hard conditions at once); ``why_not_aligned`` says why. A GNSS-aided stage
-has settled once its updates' corrections have shrunk to its sigma
+has settled once its updates' corrections no longer shrink
 (:class:`~.aligned_gate.SettleTest`); a still-base stage once its last stage has
 converged (its convergence restages it). An aided filter's sigma may keep shrinking for
 minutes (a USV's heading from its sway, 14' and still falling at 300 s); waiting for it

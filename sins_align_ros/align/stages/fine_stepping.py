@@ -12,8 +12,8 @@ asking again:
 * :class:`AidedStepping` (an :class:`~..engines.base.AidedEngine`): the engine is stepped
   in compiled stretches (or sample by sample on the live path) up to the sample each queued
   GNSS epoch or external heading is due at (:mod:`.fine_epochs`); rows are cut where the
-  covariance changes. The stage has settled once its updates' corrections have shrunk to
-  its sigma (:class:`~.aligned_gate.SettleTest`).
+  covariance changes. The stage has settled once its updates' corrections no longer
+  shrink (:class:`~.aligned_gate.SettleTest`).
 
 Each offers ``run`` (the block path), ``step`` (one sample), ``settled`` (the convergence
 rule) and ``moving`` (why the base is taken as moving, '' at rest). The two paths stay

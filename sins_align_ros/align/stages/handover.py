@@ -68,7 +68,7 @@ def hand_over(window, cfg, noise, clock, gnss, headings, install):
     reason = motion.cannot_start(cfg['fine_filter'], aided, m)
     if reason is not None:
         return None, reason
-    position, position_source = gnss.position(cfg, aided)
+    position, position_source = gnss.position(cfg, aided, clock.t_last)
     warnings, check = [], None
     if cfg['sensor_self_check']:
         # biases only where the base is known to be at rest: GNSS says so, or (a
