@@ -42,7 +42,7 @@ def long_rest_runs():
     """The MEMS car with RTK standing 90 s, then driving; node defaults, ``auto``, 3 seeds."""
     out = []
     for seed in (1000, 1001, 1002):
-        sc = starting_still(scenario('car_rtk'), 60.0)          # 30 + 60 s of rest
+        sc = starting_still(scenario('car_rtk', duration=150.0), 60.0)   # 30 + 60 s of rest
         data = simulate_cached(sc, seed)
         out.append(run_pipeline(alignment_params(sc, 'auto'), data))
     return out

@@ -201,8 +201,10 @@ class AlignmentPipeline:
         Keeps when the motion began (:class:`~.motion.Onset`); a restart for it begins its
         coarse window with the stored rest before it (:mod:`.sample_store`).
         """
-        self.onset.fix(self.gnss, self.cfg, t)
-        if self.fine is not None:
+        fine = self.fine
+        if fine is None or not (self.aided and fine.heading_known):   # it may matter
+            self.onset.fix(self.gnss, self.cfg, t)
+        if fine is not None:
             reason = motion.watch(self.gnss, self.cfg, t, self.aided, self.fine.heading_known,
                                   self.install.speed_since(t - 3.0))
             if reason is not None:
