@@ -201,14 +201,23 @@ class AlignmentPipeline:
         Keeps when the motion began (:class:`~.motion.Onset`); a restart for it begins its
         coarse window with the stored rest before it (:mod:`.sample_store`).
         """
-        fine = self.fine
-        if fine is None or not (self.aided and fine.heading_known):   # it may matter
+        if self._may_restart_for_motion:
             self.onset.fix(self.gnss, self.cfg, t)
-        if fine is not None:
+        if self.fine is not None:
             reason = motion.watch(self.gnss, self.cfg, t, self.aided, self.fine.heading_known,
                                   self.install.speed_since(t - 3.0))
             if reason is not None:
                 self._diverged(reason, reuse=True)
+
+    @property
+    def _may_restart_for_motion(self):
+        """Tell whether motion can end this stage: coarse, or one :func:`motion.watch` restarts.
+
+        Only then are the motion's onset and the samples a restart reuses kept (an aided
+        stage with its heading known runs on through any motion).
+        """
+        f = self.fine
+        return f is None or not (self.aided and f.heading_known)
 
     def heading_fix(self, t, yaw, var):
         """Record an external heading: the source's yaw (rad, REP-103) and its variance (rad^2).
@@ -269,7 +278,8 @@ class AlignmentPipeline:
         dtheta = np.atleast_2d(np.asarray(dtheta, dtype=float))
         dv = np.atleast_2d(np.asarray(dv, dtype=float))
         outs, i, n = [], 0, len(t)
-        self.store.push(t, dtheta, dv)
+        if self._may_restart_for_motion:
+            self.store.push(t, dtheta, dv)
         while i < n:
             c = self.clock               # a restart (reset) replaces the clock
             if c.t_first is None:

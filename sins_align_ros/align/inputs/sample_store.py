@@ -55,7 +55,3 @@ class SampleStore:
         else:                       # nothing kept before it: an interval like the next one
             t_before = t[0] - (t[1] - t[0] if len(t) > 1 else 0.0)
         return t_before, t[k:], dth[k:], dv[k:]
-
-    def clear(self):
-        """Forget every sample."""
-        self._parts.clear()

@@ -49,7 +49,6 @@ class CoarseWindow:
         self.parts = []
         self.T = 0.0
         self.t_end = None
-        self._ended = False
         #: stamp of the last sample taken, None before any
         self._t_last = None
 
@@ -58,9 +57,8 @@ class CoarseWindow:
         j, n = i, len(t)
         need = self.duration - self.T
         t_end = math.inf if self.t_end is None else self.t_end
-        while j < n and need > 1e-9 and not self._ended:
+        while j < n and need > 1e-9 and not (j > i and t[j - 1] >= t_end):
             need -= t[j] - (t_last if j == i else t[j - 1])
-            self._ended = t[j] >= t_end
             j += 1
         if j == i:
             return j
@@ -82,9 +80,8 @@ class CoarseWindow:
     @property
     def full(self):
         """Tell whether the window is complete (its duration, or its early end)."""
-        if self.t_end is not None and self._t_last is not None and self._t_last >= self.t_end:
-            self._ended = True
-        return self._ended or self.T >= self.duration - 1e-9
+        ended = self.t_end is not None and self._t_last is not None and self._t_last >= self.t_end
+        return ended or self.T >= self.duration - 1e-9
 
     def arrays(self, t_first):
         """Stamps (N,), increments (N, 3), (N, 3) and intervals (N,) of the window."""
