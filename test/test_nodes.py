@@ -376,13 +376,15 @@ def test_end_to_end_simulator_and_alignment_node_against_truth(ros_context, doma
 def test_alignment_node_follows_sim_time(ros_context):
     """use_sim_time: diagnostics are stamped with the simulator's /clock.
 
-    The simulator is paced (10x, /clock on) rather than as fast as possible: in one
-    single-threaded executor an unpaced stream overflows the node's best-effort queue.
+    The simulator is paced (3x, /clock on) rather than as fast as possible: in one
+    single-threaded executor an unpaced stream overflows the node's best-effort queue, and
+    at 10x (1000 messages a second) a CI machine whose other core ran a heavy test received
+    only 1269 of 3000.
     """
     node = AlignmentNode(context=ros_context, parameter_overrides=[
         Parameter('use_sim_time', value=True), Parameter('diagnostic_period', value=0.2)])
     sim = SimulatorNode(context=ros_context, parameter_overrides=[
-        Parameter('duration', value=30.0), Parameter('real_time_factor', value=10.0),
+        Parameter('duration', value=15.0), Parameter('real_time_factor', value=3.0),
         Parameter('publish_clock', value=True), Parameter('start_time', value=777.0)])
     obs = rclpy.create_node('diag_observer', context=ros_context)
     diag = []
@@ -394,8 +396,8 @@ def test_alignment_node_follows_sim_time(ros_context):
     assert spin_until(ex, lambda: sim.done, timeout_s=60.0)
     spin_until(ex, lambda: False, timeout_s=0.5)
     stamped = [stamp_to_ns(m.header.stamp) for m in diag]
-    assert stamped and all(777 * 10 ** 9 <= s <= 807 * 10 ** 9 for s in stamped)
-    assert node.counts['imu'] > 2000
+    assert stamped and all(777 * 10 ** 9 <= s <= 792 * 10 ** 9 for s in stamped)
+    assert node.counts['imu'] > 1000
     ex.shutdown()
 
 
