@@ -93,3 +93,16 @@ def test_imu_velocity_change_at_the_true_attitude_follows_the_truth_in_severe_se
     detrended = r[k] - A @ np.linalg.lstsq(A, r[k], rcond=None)[0]
     assert np.abs(detrended).max() < 0.005
     assert np.ptp(imu.v_n[:, 2]) > 2.0                  # the heave is there to follow
+
+
+def test_attitude_at_start_turns_the_end_attitude_back_over_a_swaying_window():
+    """Error-free IMU on the moored ship (sway of degrees, heave): the attitude at the end
+    turned back by the gyros and the Earth is the truth at the window's start (issue 46's
+    reprocessing starts the fine filter there), to the strapdown's own integration error."""
+    sc, imu = block('ship_sway', 30.0, imu=ImuSpec())
+    lat = sc.trajectory.lat_deg * DEG
+    C0 = coarse.attitude_at_start(euler_to_dcm(imu.euler[-1]), imu.dtheta, 0.01, lat)
+    truth0 = euler_to_dcm(sc.trajectory.kinematics(np.array([0.0])).euler[0])
+    assert np.abs(attitude_error(C0, truth0)).max() < 0.01 * ARCMIN
+    # the sway turned the body by degrees over the window: the end attitude is not it
+    assert np.abs(attitude_error(euler_to_dcm(imu.euler[-1]), truth0)).max() > 30.0 * ARCMIN

@@ -4,7 +4,6 @@ import math
 import numpy as np
 import pytest
 
-from sins_align_ros.align.stages.convergence import ConvergenceMonitor
 from sins_align_ros.align.forecast.expectation import MOTION
 from sins_align_ros.align.forecast.variance import covariance_shadow, first_aligned, riccati
 from sins_align_ros.align.pipeline import AlignmentPipeline
@@ -77,17 +76,20 @@ def test_covariance_shadow_lumped_steps_are_the_epochs_one_by_one():
         assert row == pytest.approx(want[round(t, 6)], rel=1e-4)     # round-off of 1200 steps
 
 
-def test_first_aligned_applies_the_convergence_monitor_rule():
+def test_first_aligned_applies_the_settle_span_and_the_bounds():
     t = np.arange(100.0, 700.0, 1.0)
     sig_u = np.radians(0.05) * np.sqrt(1.0 + 400.0 / (t - 90.0))    # a gyrocompass curve
     P = np.column_stack([np.full_like(t, 1e-8), np.full_like(t, 1e-8), sig_u ** 2])
-    mon = ConvergenceMonitor(30.0)
-    mon.start(100.0)
-    expected = next(i for i, (tk, s) in enumerate(zip(t, sig_u)) if mon.converged(tk, s))
-    i_al, i_tilt = first_aligned(t, P, 100.0, False, 30.0, math.radians(1.0), math.radians(2.0))
-    assert i_al == expected and i_tilt == 0
+    # heading bound 1 deg: met from the start, so aligned once the two 5-s spans have run
+    i_al, i_tilt = first_aligned(t, P, 100.0, False, 10.0, math.radians(1.0), math.radians(1.0))
+    assert t[i_al] == 110.0 and i_tilt == 0
+    # a bound met later: the first sample inside it (0.05 deg x sqrt(1 + 400 / 110) = 0.108)
+    i_al = first_aligned(t, P, 100.0, False, 10.0, 1.0, math.radians(0.1))[0]
+    assert sig_u[i_al] <= math.radians(0.1) < sig_u[i_al - 1] and t[i_al] > 110.0
+    # already settled: no span to wait for
+    assert first_aligned(t, P, 100.0, True, 10.0, 1.0, math.radians(1.0))[0] == 0
     # a bound the heading never meets: no aligned
-    assert first_aligned(t, P, 100.0, False, 30.0, 1.0, math.radians(0.01))[0] is None
+    assert first_aligned(t, P, 100.0, False, 10.0, 1.0, math.radians(0.01))[0] is None
 
 
 def _forecasts(name, duration, every=10.0, **kw):
@@ -103,23 +105,35 @@ def _forecasts(name, duration, every=10.0, **kw):
 
 
 def test_still_base_forecast_from_the_first_sample_matches_the_outcome():
-    """Static navigation grade, defaults = the sensors: one forecast from t = 1 s on."""
-    log, run, t_al, sig = _forecasts('static_navigation', 320.0)
-    assert 250.0 < t_al < 270.0                       # the outcome it must forecast
+    """Static navigation grade, defaults = the sensors: one forecast from t = 1 s on.
+
+    The window ends at its first check (coarse_min_duration, 20 s: good enough) and the
+    stage, run over it from the first sample, hands over aligned (issue 46; it was 260 s
+    with a fixed 60-s window and a stage that waited for its sigma to stop falling)."""
+    log, run, t_al, sig = _forecasts('static_navigation', 60.0, every=5.0)
+    assert t_al == pytest.approx(20.0, abs=0.02)     # the outcome it must forecast
     for t, phase, e in log:
         assert e.t_aligned == pytest.approx(t_al, abs=2.0), (t, phase)
         if phase != 'aligned':                  # once aligned: the current sigma
-            np.testing.assert_allclose(e.sigma, sig, rtol=0.03)
+            # the shadow's epochs come at 1 Hz with the zero-velocity information per
+            # second kept, the filter's at its own period: 20 s into a stage that begins
+            # at the first sample their sigmas differ by up to 5 % (3 % later on)
+            np.testing.assert_allclose(e.sigma, sig, rtol=0.06)
     assert log[0][1] == 'coarse' and log[-1][1] == 'aligned'
 
 
 def test_still_tactical_gyro_forecasts_never_with_the_heading_limit_and_a_ready_tilt():
     log, run, t_al, sig = _forecasts('static_tactical', 200.0, every=50.0)
     assert math.isinf(t_al)
+    # the window ends once the rest of it would not narrow the coarse sigma by 10 %
+    # (coarse_stage.good_enough): 21 s for the tactical grade, 60 s before issue 46
+    t_fine = float(run.out.t[np.argmax(run.out.phase != 'coarse')] - run.data.imu.t[0])
+    assert 20.0 <= t_fine < 30.0
     for t, _, e in log:
         assert math.isinf(e.t_aligned) and 'aligned_max_heading_sigma_deg' in e.note
         # right after coarse alignment (a forecast made later: ready by then)
-        assert e.t_tilt == pytest.approx(60.0, abs=1.0) if t < 60.0 else e.t_tilt <= t + 1.0
+        assert (e.t_tilt == pytest.approx(t_fine, abs=1.0) if t < t_fine
+                else e.t_tilt <= t + 1.0)
         # the best heading within the forecast's hour, ~5 deg: a little below this run's end
         assert 0.95 * sig[2] < e.sigma[2] <= sig[2]
     assert run.pipeline.status()['expected_aligned_at_s'] == 'never'
@@ -132,9 +146,13 @@ def test_still_mems_heading_is_never_forecast_without_a_heading_and_is_with_a_co
     log, _, t_al, sig = _forecasts('static_mems', 150.0, every=20.0, heading_sigma_deg=0.2,
                                    auto_still_filter='stationary12')
     assert t_al < 120.0
-    for t, _, e in log[1:]:                     # from the first compass epoch on
+    for t, phase, e in log[1:]:                 # from the first compass epoch on
         assert e.t_aligned == pytest.approx(t_al, rel=0.05), t
-        assert e.sigma[2] == pytest.approx(sig[2], rel=0.05)
+        if phase != 'aligned':                  # once aligned: the current sigma
+            # aligned 10 s into the stage (the settle test), the heading sigma still
+            # falling at 3 %/s: the shadow's 1-Hz compass and zero-velocity epochs leave
+            # it up to 11 % off there
+            assert e.sigma[2] == pytest.approx(sig[2], rel=0.15)
 
 
 def test_moving_base_forecast_waits_for_the_filter_then_runs_its_covariance_on():
@@ -160,13 +178,18 @@ def test_moving_base_forecast_waits_for_the_filter_then_runs_its_covariance_on()
 
 
 def test_waiting_pipeline_forecasts_from_the_configured_sensors_and_latitude():
-    """Before any data: a still base at initial_latitude_deg; heading grows at least as 1/cos L."""
+    """Before any data: a still base at initial_latitude_deg; nearer the pole it takes longer.
+
+    With a heading bound of 0.2 deg (the default 2 deg is met by the first row after the
+    window on the default navigation grade, at either latitude) the horizontal Earth rate,
+    3.2 times smaller at 75 deg than at 34 deg, gives the heading information more slowly."""
     p = AlignmentPipeline({'initial_latitude_deg': 34.0})
     e = p.expectation()
     assert p.phase == 'waiting' and math.isfinite(e.t_aligned)
-    far = AlignmentPipeline({'initial_latitude_deg': 75.0}).expectation()
-    ratio = math.cos(math.radians(34.0)) / math.cos(math.radians(75.0))
-    assert far.sigma[2] >= ratio * e.sigma[2]
+    tight = {'aligned_max_heading_sigma_deg': 0.2}
+    near = AlignmentPipeline({'initial_latitude_deg': 34.0, **tight}).expectation()
+    far = AlignmentPipeline({'initial_latitude_deg': 75.0, **tight}).expectation()
+    assert far.t_aligned > near.t_aligned >= e.t_aligned
     st = p.status()
     assert float(st['expected_aligned_at_s']) == pytest.approx(e.t_aligned)
     assert st['expectation_basis'].startswith('still-base')

@@ -13,7 +13,7 @@ import pytest
 from sins_align_ros.align.inputs.gnss_buffer import GnssBuffer
 from sins_align_ros.align.inputs.installation import Installation
 from sins_align_ros.align.inputs.motion import (DRIVE_DV_MPS, DRIVE_TURN_RAD, NEEDS_GNSS,
-                                                REST_FOR_EARLY_END_S, Motion, Onset,
+                                                Motion, Onset,
                                                 cannot_start, choose_filter, gnss_motion,
                                                 imu_translation, judge, watch)
 from sins_align_ros.align.params import defaults
@@ -195,7 +195,7 @@ def test_the_onset_of_motion_after_rest_ends_the_coarse_window_coarse_motion_s_l
     assert on.t == pytest.approx(rest)
     assert on.window_end(cfg, 0.0) == pytest.approx(rest + 5.0)
     # too little rest before it for the self-check: the whole window
-    assert on.window_end(cfg, rest - REST_FOR_EARLY_END_S + 0.5) is None
+    assert on.window_end(cfg, rest - cfg['coarse_min_duration'] + 0.5) is None
     # off
     assert on.window_end(_cfg(coarse_motion_s=0.0), 0.0) is None
 

@@ -73,7 +73,7 @@ def test_params_file_and_set_overrides(tmp_path):
     assert replay([str(bag), '--params', str(cfg), '--set', 'coarse_duration=5.0',
                    '--set', 'fine_filter=stationary10', '--out', str(out), '--quiet']) == 0
     last, _ = final_row(out)
-    assert last['phase'] == 'fine'
+    assert last['phase'] in ('fine', 'aligned')       # aligned after a reprocessed window
 
 
 @pytest.mark.parametrize('args,code,needle', [
@@ -222,7 +222,7 @@ def test_corrupt_bag_writes_what_was_computed_before_the_fault(tmp_path, capsys)
     errors = [ln for ln in err.splitlines() if 'error:' in ln]
     assert len(errors) == 1 and 'truncated or corrupt' in errors[0]
     row, cols = final_row(out)
-    assert len(cols['t']) == 2999 and row['phase'] == 'fine'     # every good sample written
+    assert len(cols['t']) == 2999 and row['phase'] in ('fine', 'aligned')   # every good sample
     assert abs(row['roll_deg']) < 0.01 and abs(row['pitch_deg']) < 0.01
 
 
@@ -238,7 +238,8 @@ def test_bad_messages_in_a_bag_get_the_node_input_rules(tmp_path, capsys):
     assert 'imu: non-finite value in IMU sample (first occurrence' in err
     assert 'input faults: imu bridged 1, imu nan 1, imu stamp_not_increasing 1' in err
     row, cols = final_row(out)
-    assert len(cols['t']) == 1998 and row['phase'] == 'fine'     # 2001 - start, NaN, repeat
+    assert len(cols['t']) == 1998 and row['phase'] in ('fine', 'aligned')  # 2001 - start,
+    # NaN, repeat
     assert abs(row['roll_deg']) < 0.01 and abs(row['pitch_deg']) < 0.01
 
 

@@ -104,9 +104,20 @@ ALIGNMENT_PARAMS = (
           'self-check skips its bias bounds, m/s', 0.05, 50.0),
     Param('coarse_method', 'auto', 'coarse alignment: analytic (still base), inertial_frame '
           '(sway, disturbance) or auto (picks by detecting motion)', choices=COARSE_METHODS),
-    Param('coarse_duration', 60.0, 'coarse alignment time, s (at most: see coarse_motion_s)',
+    Param('coarse_duration', 60.0, 'coarse alignment time, s (at most: see '
+          'coarse_min_duration and coarse_motion_s)', 1.0, 3600.0),
+    Param('coarse_min_duration', 20.0, 'shortest coarse window, which the sensor self-check '
+          'reads: a still base\'s window ends once it has lasted this long and its attitude, '
+          'with the noise the samples show, is good enough for the fine filter '
+          '(docs/filters.md); a rested base that starts to move needs this much rest for '
+          'coarse_motion_s; at least coarse_duration: the window lasts coarse_duration, s',
           1.0, 3600.0),
-    Param('coarse_motion_s', 5.0, 'a coarse window that held 20 s of rest ends this long '
+    Param('coarse_reprocess', True, 'a still-base fine filter starts at the coarse window\'s '
+          'first sample and runs over its stored samples before the live ones, with a prior '
+          'that does not count them twice (docs/filters.md); false: it starts at the '
+          'window\'s end'),
+    Param('coarse_motion_s', 5.0, 'a coarse window that held coarse_min_duration of rest ends '
+          'this long '
           'after GNSS shows the base start moving (the moving-base coarse alignment takes '
           'the heading from the motion); 0 = always coarse_duration, s', 0.0, 3600.0),
     Param('initial_latitude_deg', math.nan, 'latitude used without a GNSS fix, deg; .nan: not '
@@ -169,8 +180,9 @@ ALIGNMENT_PARAMS = (
     Param('max_stages', 3, 'staged re-initialisations of the stationary filter after '
           'convergence (seed 002 sec. 4; 1 = none), made only after an initial misalignment '
           'large enough for the first stage\'s linear model to leave an error', 1, 10),
-    Param('stage_min_duration', 30.0, 'minimum time of one stationary fine-alignment stage '
-          '(a GNSS-aided stage is aligned once its estimate has settled), s', 5.0, 3600.0),
+    Param('stage_min_duration', 30.0, 'minimum time of a stationary fine-alignment stage '
+          'before it may be restaged (max_stages; aligned comes once the estimate has '
+          'settled, whatever the stage), s', 5.0, 3600.0),
     Param('aligned_max_tilt_sigma_deg', 1.0, 'aligned once the roll and pitch 1-sigma are at '
           'most this, left when they exceed 1.2 times it, deg (tilt_ready in the '
           'diagnostics)', 0.001, 90.0),

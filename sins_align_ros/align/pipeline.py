@@ -287,16 +287,19 @@ class AlignmentPipeline:
                     c.t_last = t[i] - (t[i + 1] - t[i] if i + 1 < n else 0.01)
                 c.t_first = c.t_last
             if self.fine is None:
-                self.window.t_end = self.onset.window_end(self.cfg, c.t_first)
+                w, still = self.window, not self.aided and self.onset.t is None
+                w.t_end = self.onset.window_end(self.cfg, c.t_first)
+                w.plan(c.t_first, self.cfg, still)
                 # (a restart's window, begun with stored samples, may be complete already)
-                j = i if self.window.full else self.window.take(t, dtheta, dv, i, c.t_last)
+                j = i if w.full else w.take(t, dtheta, dv, i, c.t_last)
                 if j > i:
                     c.t_last = t[j - 1]
+                w.judge(c.t_first, self.cfg, self.noise, self.gnss, still)
                 out = unknown(t[i:j], COARSE)
                 if self.window.full:
                     self._finish_coarse()
                     if self.fine is not None and j > i:   # else degenerate: coarse again
-                        out.phase[-1] = FINE
+                        out.phase[-1] = self.fine.phase   # aligned after a reprocessing
                         self._fill_last(out)
                 outs.append(out)
                 i = j
@@ -304,13 +307,21 @@ class AlignmentPipeline:
             if n == 1:                      # the live node's path: scalar arithmetic
                 out, reason = self.fine.step(t[0], dtheta[0], dv[0], self.gnss)
                 if reason is not None:
-                    self._diverged(reason)
+                    self._diverged(reason, reuse=self._moved_off)
                 return out
             parts, i, reason = self.fine.run(t, dtheta, dv, i, self.gnss)
             outs.extend(parts)
             if reason is not None:
-                self._diverged(reason)
+                self._diverged(reason, reuse=self._moved_off)
         return assemble(outs)
+
+    @property
+    def _moved_off(self):
+        """Tell whether the stage ended because a still base started moving (its rest watch).
+
+        Its restart reuses the stored rest, as one for GNSS motion does (:meth:`_diverged`).
+        """
+        return self.fine is not None and self.fine.moved_off
 
     def start_fine(self, C_b_n, sigma_phi, t0, lat=None, h=0.0):
         """Skip coarse alignment: start fine alignment at ``t0`` from ``C_b_n``.
@@ -364,16 +375,18 @@ class AlignmentPipeline:
 
     def _fill_last(self, out):
         """Put the coarse result into the last row of a coarse block."""
-        r = Rows(out.t[-1:], self.mech.C_b_n[None], self.attitude_cov(), FINE).output()
+        r = Rows(out.t[-1:], self.mech.C_b_n[None], self.attitude_cov(),
+                 self.fine.phase).output()
         out.q[-1], out.euler[-1], out.sigma[-1], out.P_phi[-1] = r.q[0], r.euler[0], \
             r.sigma[0], r.P_phi[0]
 
     def _diverged(self, reason, reuse=False):
         """Restart from coarse alignment after a filter failure, keeping GNSS history.
 
-        ``reuse`` (GNSS shows the base start moving): the new coarse window begins with the
-        stored samples from the rest before the motion (:mod:`.sample_store`), and the
-        motion's onset is kept, so that the window may end soon after it.
+        ``reuse`` (GNSS, or a still-base stage's rest watch, shows the base start moving):
+        the new coarse window begins with the stored samples from the rest before the
+        motion (:mod:`.sample_store`; before this restart where GNSS has not yet shown it),
+        and the motion's onset is kept, so that the window may end soon after it.
         """
         t = self.clock.t_last
         onset = self.onset
@@ -381,16 +394,18 @@ class AlignmentPipeline:
         self.clock.t_last = t
         self.n_restarts += 1
         self.warnings.append(f'{reason}: alignment restarted from coarse')
-        if not reuse or onset.t is None:
+        if not reuse:
             return
         # the rest the early end needs, but no more than leaves the window room for the
         # motion's coarse_motion_s (a short coarse_duration)
         cfg = self.cfg
-        kept = self.store.since(max(onset.t - motion.REST_FOR_EARLY_END_S - 1.0,
-                                    onset.t + cfg['coarse_motion_s'] - cfg['coarse_duration']))
-        if kept is None or kept[1][-1] > t + 1e-9:
+        ref = t if onset.t is None else onset.t
+        kept = self.store.since(max(ref - cfg['coarse_min_duration'] - 1.0,
+                                    ref + cfg['coarse_motion_s'] - cfg['coarse_duration']), t)
+        if kept is None:
             return
-        self.onset = onset
+        if onset.t is not None:
+            self.onset = onset
         self.window.prefill(*kept)
+        self.window.t_check = math.inf  # no end when good enough: it waits for the motion
         self.clock.t_first = kept[0]
-        self.warnings.append(f'{reason}: alignment restarted from coarse')

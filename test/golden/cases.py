@@ -104,21 +104,28 @@ class Case:
         return GOLDEN_DIR / f'{self.name}.csv'
 
 
+#: a still-base stage runs over its coarse window before its first row (issue 46,
+#: align/stages/reprocess.py) and may hand over ``aligned``
+STILL_PHASES = ('coarse', 'aligned')
+
 CASES = (
     # still base (seed 002's models) on one 160 s bag of a still tactical-grade IMU
     Case('reduced7_static_tactical', 'reduced7', 'bag', 'reduced 7-state filter, still '
          'tactical IMU, 3 stages, params from a YAML file, first 120 s of the bag',
          scenario='static_tactical', seed=11, bag_duration=160.0,
          params={**STATIC_TACTICAL, **QUICK_STAGES}, via_yaml=True,
-         args=('--duration', '120')),
+         args=('--duration', '120'), expect=STILL_PHASES),
+    # (its restage at 59 s widens the heading 1-sigma to 16 deg, past 1.2 x the 10-deg
+    # bound, for 14 s: the 10-state model's guard against counting the bias twice)
     Case('stationary10_static_tactical', 'stationary10', 'bag', '10-state filter, still '
          'tactical IMU, 2 stages', scenario='static_tactical', seed=11, bag_duration=160.0,
-         params={**STATIC_TACTICAL, **QUICK_STAGES, 'max_stages': 2}),
+         params={**STATIC_TACTICAL, **QUICK_STAGES, 'max_stages': 2},
+         expect=('coarse', 'aligned', 'fine')),
     Case('stationary12_static_tactical', 'stationary12', 'bag', '12-state filter, still '
          'tactical IMU, one stage, first 100 s of the bag', scenario='static_tactical',
          seed=11, bag_duration=160.0,
          params={**STATIC_TACTICAL, **QUICK_STAGES, 'max_stages': 1},
-         args=('--duration', '100')),
+         args=('--duration', '100'), expect=STILL_PHASES),
     # seed 000 ship (GNSS position; the ASCKF also the velocity)
     Case('ckf_ship_position_only', 'ckf', 'bag', 'CKF on the seed 000 ship, GNSS position '
          'only (velocity topic ignored)', scenario='seed000_case1', seed=4,
@@ -156,10 +163,10 @@ CASES = (
     # real recordings
     Case('psins_lasergyro_reduced7_300s', 'reduced7', 'psins', 'laser-gyro recording, '
          'default parameters, first 300 s', recording='psins_lasergyro.imu',
-         args=('--duration', '300'), every=100, expect=('coarse', 'fine', 'aligned')),
+         args=('--duration', '300'), every=100, expect=STILL_PHASES),
     Case('psins_lasergyro_stationary12_300s', 'stationary12', 'psins', 'laser-gyro '
          'recording, 12-state filter, first 300 s', recording='psins_lasergyro.imu',
-         args=('--duration', '300'), every=100, expect=('coarse', 'fine', 'aligned')),
+         args=('--duration', '300'), every=100, expect=STILL_PHASES),
     Case('fog_mems_car_asckf', 'asckf', 'fog', 'fog_mems car recording (100 s) through '
          'AlignmentPipeline + feed_arrays, GNSS-like position and velocity',
          params=dict(FOG), every=25, expect=('coarse', 'fine')),

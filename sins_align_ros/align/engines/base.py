@@ -96,6 +96,9 @@ class StillEngine(Engine, Protocol):
     #: re-initialising after the first stage can remove an error it leaves (a large
     #: initial misalignment, :func:`~.stationary.restage_helps`)
     restage_helps: bool
+    #: the misalignment (3,) rad the last epoch fed back, ``C = exp([phi x]) C~`` (zero
+    #: when it updated nothing): what the settle test sums
+    last_correction: np.ndarray
 
     def run_block(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, i: int,
                   t_last: float) -> Tuple[int, np.ndarray, bool]:

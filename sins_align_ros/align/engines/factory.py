@@ -63,7 +63,7 @@ def make_engine(cfg, noise, start, has_velocity, heading_known=True):
     family = FILTERS[ff].family
     if family == STILL:
         eng = cls(StationaryModel(ff), noise, start.C_b_n, start.sigma, start.position,
-                  zero_velocity_sigmas(cfg), 1.0 / cfg['fine_update_hz'])
+                  zero_velocity_sigmas(cfg), 1.0 / cfg['fine_update_hz'], start.sigma_linear)
         eng.heading_gate = _heading_gate(cfg)
         return eng, eng.floor, []
     # drift states: a random constant, plus a random walk that lets them follow a

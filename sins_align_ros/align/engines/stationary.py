@@ -82,13 +82,19 @@ class StationaryEngine(StillCoast):
         up (the vertical one is used by models that measure it).
     period : float
         Filter period, s.
+    sigma_linear : ndarray (3,) or None
+        The error the initial attitude may carry, rad, where it is smaller than
+        ``sigma_phi`` (a coarse sigma without its floors, a reprocessing prior wider than
+        the coarse attitude's error): it decides whether a restage helps. None:
+        ``sigma_phi``.
     """
 
     navigates = False
     #: the pipeline may re-initialise this filter when it has converged
     restages = True
 
-    def __init__(self, model, noise, C_b_n, sigma_phi, position, zero_velocity_sigma, period):
+    def __init__(self, model, noise, C_b_n, sigma_phi, position, zero_velocity_sigma, period,
+                 sigma_linear=None):
         lat, lon, h = position
         m = self.model = model
         self.noise = noise
@@ -112,7 +118,8 @@ class StationaryEngine(StillCoast):
         self.bound = np.zeros(3) if m.name == 'reduced7' else unobservable_variance(lat, noise)
         self.period = float(period)
         #: the fine stage may restage this filter (a large initial misalignment)
-        self.restage_helps = restage_helps(sigma_phi, lat, noise)
+        self.restage_helps = restage_helps(sigma_phi if sigma_linear is None else sigma_linear,
+                                           lat, noise)
         self.since_update = 0.0
         #: the external heading's innovation gate (the factory sets the GNSS gate's figures)
         self.heading_gate = GnssGate(0.9999, sizes=(1,), name='heading')
@@ -124,6 +131,9 @@ class StationaryEngine(StillCoast):
         #: the last epoch was refused; refused epochs so far
         self.last_gated = False
         self.n_gated = 0
+        #: the misalignment (3,) rad the last epoch fed back (zero if it updated nothing):
+        #: ``C = exp([phi x]) C~``, what the settle test sums (:mod:`...stages.aligned_gate`)
+        self.last_correction = np.zeros(3)
         #: the covariance after each of the last epochs and the attitude correction it fed
         #: back (a rollback when the base is found moving), the start first
         self._recent = deque([(self.P, np.zeros(3), np.zeros(3))],
@@ -168,6 +178,7 @@ class StationaryEngine(StillCoast):
         while coasting the covariance grows instead (:class:`~.still_watch.Coast`).
         """
         self.since_update = 0.0
+        self.last_correction = np.zeros(3)
         if self.coast is not None:
             self.coast.advance(dt, float(np.hypot(*self.mech.v_n[:2])))
             return
@@ -188,7 +199,8 @@ class StationaryEngine(StillCoast):
         self.n_updates += 1
         dvel = np.zeros(3)
         dvel[m.meas] = self.x[m.i_v]
-        self._recent.append((self.P, self.x[m.i_phi].copy(), dvel))
+        self.last_correction = self.x[m.i_phi].copy()
+        self._recent.append((self.P, self.last_correction, dvel))
         self._feed_back()
 
     def _feed_back(self):

@@ -226,6 +226,9 @@ class StillWatch:
         self.rest = None
         #: why the base is taken as moving ('' at rest)
         self.moving = ''
+        #: the stage ended because the base moved while GNSS came (a GNSS-aided filter takes
+        #: over; the pipeline's restart reuses the stored rest)
+        self.moved_off = False
 
     def push(self, t, dtheta, dv, t_prev):
         """Give the rest test the samples ``t`` (whose first interval starts at ``t_prev``)."""
@@ -258,6 +261,7 @@ class StillWatch:
         if not what:
             return None, None
         if gnss_recent:
+            self.moved_off = True
             return None, (f'the IMU shows the base moving ({what}): the zero-velocity filter '
                           f'{eng.model.name} stops so that a GNSS-aided filter takes over')
         eng.start_coast(ROLLBACK_S, math.hypot(eng.noise.gyro_bias, self.gyro_instability),

@@ -60,6 +60,7 @@ from ..stages.aligned_gate import SETTLE_S
 from ..engines.factory import is_aided
 from ..stages.fine_stage import Clock
 from ..stages.handover import fine_stage_for
+from ..stages.reprocess import PRIOR_SHARE
 from ..inputs.motion import choose_filter, gnss_motion
 from .variance import covariance_shadow, first_aligned, heading_limit_var, process_noise, riccati
 
@@ -191,10 +192,8 @@ def _apply_rules(p, fine, t_abs, Pf):
     heading_known = fine.heading_known
     if not heading_known:
         max_head = -1.0
-    restages = fine.engine.restages
-    i_al, i_tilt = first_aligned(t_abs, Pf, fine.monitor.t0, fine.converged,
-                                 cfg['stage_min_duration'] if restages else 2.0 * SETTLE_S,
-                                 max_tilt, max_head, restages)
+    i_al, i_tilt = first_aligned(t_abs, Pf, fine.stepping.settle.t0, fine.converged,
+                                 2.0 * SETTLE_S, max_tilt, max_head)
     to_elapsed = t_abs - _t_first(p)
     sig = np.sqrt(np.maximum(Pf[-1 if i_al is None else i_al], 0.0))
     note = ''
@@ -246,8 +245,9 @@ def _moving(p):
 def _still(p):
     """Forecast by a still-base shadow run of pipeline ``p``: its fine stage, or a new one."""
     fine = p.fine
+    t_ready = -math.inf                 # no row of the stage before this stamp
     if fine is None:
-        fine, t0 = _new_stage(p)
+        fine, t0, t_ready = _new_stage(p)
     else:
         fine, t0 = copy.deepcopy(fine), p.t_last
     eng = fine.engine
@@ -278,12 +278,15 @@ def _still(p):
     ts, Ps = np.array(ts), np.array(Ps)
     e = _apply_rules(p, fine, ts, Ps)
     e.basis = STILL
-    if heading is not None and eng.model.name == 'reduced7' and e.note:
-        e.note += ('; reduced7 keeps its gyro-bias heading limit with an external heading: '
-                   'stationary12 (fine_filter or auto_still_filter) uses it fully')
     if fine.phase == 'aligned':
         e.t_aligned = ts[-1] - _t_first(p)
         e.sigma, e.note = np.sqrt(Ps[-1]), ''
+    # a stage that reprocesses the window publishes its first row at the window's end
+    e.t_aligned = max(e.t_aligned, t_ready - _t_first(p))
+    e.t_tilt = max(e.t_tilt, t_ready - _t_first(p))
+    if heading is not None and eng.model.name == 'reduced7' and e.note:
+        e.note += ('; reduced7 keeps its gyro-bias heading limit with an external heading: '
+                   'stationary12 (fine_filter or auto_still_filter) uses it fully')
     return e
 
 
@@ -299,25 +302,37 @@ def _heading_source(p):
 
 
 def _new_stage(p):
-    """Return a fine stage as the pipeline would start it after coarse, and its start stamp."""
+    """Return a fine stage as the pipeline would start it after coarse, and its stamps.
+
+    The stamps: where the stage starts, and its first row (the window's end).
+    The window lasts what the configured model gives (:func:`~.coarse_stage.
+    expected_duration`); the stage starts at its first sample with the reprocessing prior
+    (:mod:`~..stages.reprocess`) unless ``coarse_reprocess`` is off or an external heading
+    sets the coarse heading (then at the window's end, from the coarse sigma).
+    """
     cfg = dict(p.cfg)
     cfg['fine_filter'] = choose_filter(cfg, False)
     position = p.position if p.position is not None else p.gnss.position(cfg, False)[0]
     lat = position[0]
-    T = cfg['coarse_duration']
+    T = coarse_stage.expected_duration(p.noise, lat, cfg)
     sigma, _ = coarse_stage.coarse_sigma(p.noise, T, lat, False)
     heading = _heading_source(p)
+    replay = cfg['coarse_reprocess'] and heading is None
+    if replay:
+        sigma = np.maximum(sigma, coarse_stage.coarse_sigma(p.noise, PRIOR_SHARE * T, lat,
+                                                            False)[0])
     if heading is not None:          # the coarse stage takes the external heading
         sigma[2] = math.sqrt(heading[0])
     start = coarse_stage.CoarseResult(np.eye(3), sigma, np.asarray(position, float))
     known = (heading_limit_var(lat, p.noise) > 0.0 or p.noise.gyro_bias == 0.0
              or heading is not None)
     clock = Clock()
-    t0 = _t_first(p) + T
+    t_end = _t_first(p) + T
+    t0 = _t_first(p) if replay else t_end
     clock.t_first = clock.t_last = t0
     fine, _ = fine_stage_for(start, cfg, p.noise, False, known, heading is not None, clock,
                              None, copy.deepcopy(p.headings))
-    return fine, t0
+    return fine, t0, t_end
 
 
 def figures(e, C_b_n=None):

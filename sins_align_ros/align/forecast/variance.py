@@ -5,7 +5,7 @@ gyro's variance growth (:func:`process_noise`), the heading limit of a gyro that
 rate (:func:`heading_limit_var`, seed 002 eq. 15), the scalar Riccati equation a filter's
 variance trend is extrapolated with (:func:`riccati`), a linear filter's covariance run on
 epoch after epoch with the model of its last epoch (:func:`covariance_shadow`), and the
-pipeline's convergence and ``aligned`` rules applied to a forecast curve
+pipeline's settle and ``aligned`` rules applied to a forecast curve
 (:func:`first_aligned`).
 """
 import math
@@ -16,7 +16,6 @@ from ...models.stationary import unobservable_variance
 from ...nav import earth
 from ...units import DPH
 from ..engines.force import ANGLE_UNKNOWN_VAR
-from ..stages.convergence import MIN_SPAN_S, SHRINK, WINDOW_S
 
 #: the covariance shadow stops once the attitude variances changed less than this
 #: fraction over :data:`SETTLED_S` s (the rest of the horizon holds the last value)
@@ -72,34 +71,21 @@ def riccati(P0, q, r, tau):
     return out
 
 
-def first_aligned(t, P, t_stage, converged, min_duration, max_tilt, max_heading,
-                  restages=True):
+def first_aligned(t, P, t_stage, converged, min_duration, max_tilt, max_heading):
     """Apply the pipeline's rules to a forecast variance curve ``P`` (M, 3) at ``t`` (M,).
 
-    The stage (started at ``t_stage``; ``converged`` already latched) settles where it has
-    run ``min_duration`` and, for a still-base stage (``restages``), its heading sigma
-    fell less than 2 % against the oldest of the last :data:`~.convergence.WINDOW_S` s
-    (spanning at least ``MIN_SPAN_S``); ``aligned`` from then on where the tilt and
-    heading 1-sigma are within the bounds (:mod:`.fine_stage`). Returns
-    ``(index of aligned or None, index of a ready tilt or None)``.
+    The stage (its settle test started at ``t_stage``; ``converged`` already latched)
+    settles where it has run ``min_duration`` (the settle test's two spans: a forecast
+    curve has no corrections to sum, and a filter whose variance follows it settles as
+    the spans fill); ``aligned`` from then on where the tilt and heading 1-sigma are
+    within the bounds (:mod:`.fine_stage`). Returns ``(index of aligned or None, index of
+    a ready tilt or None)``.
     """
     s = np.sqrt(np.maximum(P, 0.0))
     tilt_ok = np.maximum(s[:, 0], s[:, 1]) <= max_tilt
     i_tilt = np.flatnonzero(tilt_ok)
     i_tilt = int(i_tilt[0]) if len(i_tilt) else None
-    if not converged:
-        # the monitor compares with the oldest sigma of its window, which must span enough
-        old = np.searchsorted(t, t - WINDOW_S, side='left')
-        ok = t - t_stage >= min_duration
-        if restages:
-            ok &= t - t[old] >= MIN_SPAN_S
-            ok[ok] = s[ok, 2] >= SHRINK * s[old[ok], 2]
-        conv = np.flatnonzero(ok)
-        if not len(conv):
-            return None, i_tilt
-        start = int(conv[0])
-    else:
-        start = 0
+    start = 0 if converged else int(np.searchsorted(t, t_stage + min_duration, side='left'))
     good = np.flatnonzero(tilt_ok[start:] & (s[start:, 2] <= max_heading))
     return (start + int(good[0]) if len(good) else None), i_tilt
 

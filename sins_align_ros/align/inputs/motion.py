@@ -17,7 +17,7 @@ invisible). Then no filter can align without GNSS, and the pipeline says so.
 A base that rests and then drives (a car at a traffic light, a robot waiting for its
 mission) need not wait out the coarse window once it moves (issue 46): :class:`Onset`
 keeps when GNSS first showed the motion, and the window ends ``coarse_motion_s`` seconds
-after it, provided it held :data:`REST_FOR_EARLY_END_S` of rest before (the sensor
+after it, provided it held ``coarse_min_duration`` of rest before (the sensor
 self-check's noise and bias checks read the rest). The moving-base coarse alignment then
 takes its heading from those seconds (the GNSS track once faster than
 ``track_min_speed_mps``, else the inertial-frame fit of the GNSS velocity change) and the
@@ -35,8 +35,6 @@ from ...nav.coarse import velocity_integral_b0
 DRIVE_DV_MPS = 1.0
 #: the body turns by more than this over the window, rad
 DRIVE_TURN_RAD = math.radians(30.0)
-#: a coarse window may end early only after this much rest before the motion began, s
-REST_FOR_EARLY_END_S = 20.0
 #: what a moving base without GNSS is told
 NEEDS_GNSS = ('the IMU shows the base moving (it {what}) and there is no GNSS: a moving base '
               'cannot be aligned without GNSS (publish gnss/fix, and gnss/vel if you have it) '
@@ -190,6 +188,6 @@ class Onset:
     def window_end(self, cfg, t_first):
         """Return the stamp at which the coarse window begun at ``t_first`` ends early, or None."""
         s, need = self.t, cfg['coarse_motion_s']
-        if s is None or not need > 0.0 or s - t_first < REST_FOR_EARLY_END_S:
+        if s is None or not need > 0.0 or s - t_first < cfg['coarse_min_duration']:
             return None
         return s + need

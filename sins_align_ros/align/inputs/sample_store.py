@@ -5,9 +5,10 @@ pipeline restarts from coarse alignment. Opening an empty window there threw the
 before the motion away, and the new window, all motion, had no rest for the sensor
 self-check and so waited out the whole ``coarse_duration`` (a car that stood 90 s, then
 drove: ``aligned`` about 60 s after it started). The restart instead begins its window
-with the stored samples from :data:`~.motion.REST_FOR_EARLY_END_S` (plus a margin) before
-the motion's onset, so that the window may end ``coarse_motion_s`` after the onset as
-on a first start (:class:`~.motion.Onset`). Their rows were published already and are not
+with the stored samples from ``coarse_min_duration`` (plus a margin; at most
+:data:`KEEP_S`) before the motion's onset, so that the window may end
+``coarse_motion_s`` after the onset as on a first start (:class:`~.motion.Onset`). Their
+rows were published already and are not
 published again: the samples only fill the coarse window.
 
 Bounded: at most :data:`KEEP_S` seconds (at 1 kHz about 1.7 MB).
@@ -36,17 +37,20 @@ class SampleStore:
         while self._parts and self._parts[0][0][-1] < t[-1] - self.keep_s:
             self._parts.popleft()
 
-    def since(self, t0):
-        """Return the kept samples stamped after ``t0``: ``(t_before, t, dtheta, dv)`` or None.
+    def since(self, t0, t1=np.inf):
+        """Return the kept samples stamped in ``(t0, t1]``: ``(t_before, t, dtheta, dv)`` or None.
 
         ``t_before``: the stamp the first returned sample's interval starts at (the sample
-        before it; with none kept before, one interval like the next one earlier).
+        before it; with none kept before, one interval like the next one earlier). ``t1``:
+        the last sample processed (a block is kept whole before it is processed, and a stage
+        may end inside it).
         """
         if not self._parts:
             return None
         t = np.concatenate([p[0] for p in self._parts])
         k = int(np.searchsorted(t, t0, side='right'))
-        if k >= len(t):
+        m = int(np.searchsorted(t, t1, side='right'))
+        if k >= m:
             return None
         dth = np.concatenate([p[1] for p in self._parts])
         dv = np.concatenate([p[2] for p in self._parts])
@@ -54,4 +58,4 @@ class SampleStore:
             t_before = t[k - 1]
         else:                       # nothing kept before it: an interval like the next one
             t_before = t[0] - (t[1] - t[0] if len(t) > 1 else 0.0)
-        return t_before, t[k:], dth[k:], dv[k:]
+        return t_before, t[k:m], dth[k:m], dv[k:m]

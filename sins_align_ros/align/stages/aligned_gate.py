@@ -6,17 +6,17 @@ filter's heading sigma may keep falling for minutes), and leaving it at every te
 failed by a hair made it flicker (a MEMS car with RTK: 13 switches in 700 s, e.g. on
 NIS/dof 1.68 against a bound of 1.66), so that anything waiting for it toggled too.
 
-**Settled** (:class:`SettleTest`, GNSS-aided stages; a still-base stage still settles when
-its heading sigma stops falling, :mod:`.convergence`, since that is when it restages). The
-attitude the filter's updates move is summed per ENU axis, with its sign, over the last
-:data:`SETTLE_S` seconds and over the :data:`SETTLE_S` seconds before; the estimate has
-settled once the stage has run twice :data:`SETTLE_S` and the two sums differ by at most
-:data:`SETTLE_SIGMAS` times that axis's published 1-sigma. A filter still converging moves
-its attitude by less in each span than in the one before; one that has converged moves it
-by noise, or at a steady rate where it compensates an estimated drift at its epochs
-(seed 000's engine keeps the gyro drift in the filter, so each update turns the attitude
-by the drift over the interval: on raw MEMS AHRS triads about 0.9 deg every 5 s, which a
-test on the sum itself never passed). Latched for the stage.
+**Settled** (:class:`SettleTest`, every stage: the GNSS and heading updates of an aided
+one, the zero-velocity epochs of a still-base one, whose convergence now only decides a
+restage, :mod:`.convergence`). The attitude the filter's updates move is summed per ENU
+axis, with its sign, over the last :data:`SETTLE_S` seconds and over the :data:`SETTLE_S`
+seconds before; the estimate has settled once the stage has run twice :data:`SETTLE_S`
+and the two sums differ by at most :data:`SETTLE_SIGMAS` times that axis's published
+1-sigma. A filter still converging moves its attitude by less in each span than in the one
+before; one that has converged moves it by noise, or at a steady rate where it compensates
+an estimated drift at its epochs (seed 000's engine keeps the gyro drift in the filter, so
+each update turns the attitude by the drift over the interval: on raw MEMS AHRS triads about
+0.9 deg every 5 s, which a test on the sum itself never passed). Latched for the stage.
 
 **Entered** at a filter epoch where the stage has settled and every condition holds: the
 roll/pitch and heading 1-sigma within ``aligned_max_tilt_sigma_deg`` /

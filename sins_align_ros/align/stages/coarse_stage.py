@@ -10,13 +10,14 @@ The sigma handed to the fine filter is a conservative bound on what the coarse
 method leaves (:func:`coarse_sigma`), so the fine filter starts honest.
 """
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ...nav import coarse, earth
 from ...nav.frames import dcm_to_euler, euler_to_dcm
 from ...units import DEG, DPH
+from .noise_estimates import difference_density
 
 
 @dataclass
@@ -25,7 +26,13 @@ class CoarseResult:
 
     ``C_b_n`` (3, 3) body FLU -> ENU; ``sigma`` (3,) rad; ``v_n`` (3,) ENU velocity at
     the end of the window (zero on a still base); ``position`` (3,) rad, rad, m;
-    ``sigma_v`` m/s the velocity's sigma; ``info`` for diagnostics; ``warnings``.
+    ``sigma_v`` m/s the velocity's sigma; ``info`` for diagnostics; ``warnings``;
+    ``sigma_linear`` (3,) rad or None: the error the attitude may carry, without
+    :func:`coarse_sigma`'s floors (0.5 deg of heading, 0.05 deg of tilt, which keep the
+    fine filter's prior honest): what decides whether a still-base filter's restage
+    helps (:func:`~..engines.stationary.restage_helps`; a marine-grade window of 20 s
+    leaves arcminutes, whose nonlinear error is nothing, while the floor's 0.5 deg called
+    for a restage, which widened a converged heading nine-fold). None: ``sigma``.
     """
 
     C_b_n: np.ndarray
@@ -35,13 +42,17 @@ class CoarseResult:
     sigma_v: float = 0.01
     info: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
+    sigma_linear: np.ndarray = None
 
 
 class CoarseWindow:
     """The samples of the coarse window, ``duration`` seconds from ``t_first``.
 
     ``t_end`` (set by the pipeline, :class:`~..inputs.motion.Onset`): the window also ends
-    with the first sample stamped at or after it.
+    with the first sample stamped at or after it. ``t_check`` (set by the pipeline): a
+    :meth:`take` also stops after the first sample stamped at or after it, so that the
+    pipeline judges the window there (:func:`good_enough`) and may end it (:attr:`ended`)
+    at the same sample whether the samples come one by one or in blocks.
     """
 
     def __init__(self, duration):
@@ -49,6 +60,9 @@ class CoarseWindow:
         self.parts = []
         self.T = 0.0
         self.t_end = None
+        self.t_check = None
+        #: the pipeline ended the window (its attitude is good enough)
+        self.ended = False
         #: stamp of the last sample taken, None before any
         self._t_last = None
 
@@ -56,7 +70,8 @@ class CoarseWindow:
         """Take samples from index ``i`` until the window is full; returns the end index."""
         j, n = i, len(t)
         need = self.duration - self.T
-        t_end = math.inf if self.t_end is None else self.t_end
+        t_end = min(math.inf if self.t_end is None else self.t_end,
+                    math.inf if self.t_check is None else self.t_check)
         while j < n and need > 1e-9 and not (j > i and t[j - 1] >= t_end):
             need -= t[j] - (t_last if j == i else t[j - 1])
             j += 1
@@ -81,7 +96,33 @@ class CoarseWindow:
     def full(self):
         """Tell whether the window is complete (its duration, or its early end)."""
         ended = self.t_end is not None and self._t_last is not None and self._t_last >= self.t_end
-        return ended or self.T >= self.duration - 1e-9
+        return self.ended or ended or self.T >= self.duration - 1e-9
+
+    def plan(self, t_first, cfg, still):
+        """Set the first check (before a :meth:`take`): ``t_first + coarse_min_duration``.
+
+        ``t_first``: where the window began; ``still``: the fine filter is a still-base one
+        (or ``auto`` and GNSS has not shown the base moving); else no check.
+        """
+        if self.t_check is None and still and cfg['coarse_min_duration'] < self.duration:
+            self.t_check = t_first + cfg['coarse_min_duration']
+
+    def judge(self, t_first, cfg, noise, gnss, still):
+        """End the window at a due check if its attitude is good enough (:func:`good_enough`).
+
+        Checks fall every :data:`CHECK_EVERY_S` from the first (:meth:`plan`), only where
+        ``still`` (as there) and the latitude is known (``gnss``: the
+        :class:`~..inputs.gnss_buffer.GnssBuffer`; the self-check estimates an unknown one
+        from the whole window). ``noise``: the configured model.
+        """
+        if (self.t_check is None or self._t_last is None or self._t_last < self.t_check
+                or self.full):
+            return
+        while self.t_check <= self._t_last:
+            self.t_check += CHECK_EVERY_S
+        if still and gnss.latitude_known(cfg):
+            lat = gnss.position(cfg, False)[0][0]
+            self.ended = good_enough(self.arrays(t_first), noise, lat, self.duration)
 
     def arrays(self, t_first):
         """Stamps (N,), increments (N, 3), (N, 3) and intervals (N,) of the window."""
@@ -91,6 +132,11 @@ class CoarseWindow:
         return tt, dth, dvv, np.diff(np.concatenate([[t_first], tt]))
 
 
+#: seconds between two checks of whether a still base's window is good enough
+CHECK_EVERY_S = 1.0
+#: a still base's window is good enough when the rest of it would narrow no sigma by more
+#: than this share (:func:`good_enough`)
+GOOD_ENOUGH = 0.1
 #: fits of the moving-base coarse alignment that move the GNSS velocity to the IMU with
 #: the previous fit's attitude (a lever arm)
 ARM_PASSES = 2
@@ -110,11 +156,12 @@ LATITUDE_UNSET = ('latitude unknown: initial_latitude_deg is not set, no GNSS fi
                   'initial_latitude_deg')
 
 
-def coarse_sigma(noise, T, lat, moving, cap=30.0 * DEG):
+def coarse_sigma(noise, T, lat, moving, cap=30.0 * DEG, floors=True):
     """Conservative 1-sigma misalignment (3,) rad after coarse alignment over T seconds.
 
     Returns ``(sigma, warning or None)``: the warning says when the gyro bias is not
-    small against the horizontal Earth rate (no heading on a still base).
+    small against the horizontal Earth rate (no heading on a still base). ``floors``
+    False: without the 0.05 deg tilt and 0.5 deg heading floors (the cap stays).
     """
     g = earth.gravity(lat, 0.0)
     wc = earth.OMEGA_IE * np.cos(lat)
@@ -123,14 +170,78 @@ def coarse_sigma(noise, T, lat, moving, cap=30.0 * DEG):
     head += abs(np.tan(lat)) * tilt
     if moving:
         tilt, head = 2.0 * tilt, 2.0 * head
-    tilt = max(tilt, 0.05 * DEG)
-    head = min(max(head, 0.5 * DEG), cap)
+    if floors:
+        tilt, head = max(tilt, 0.05 * DEG), max(head, 0.5 * DEG)
+    head = min(head, cap)
     warning = None
     if noise.gyro_bias > 0.5 * wc:
         warning = (f'gyro bias {noise.gyro_bias / DPH:.3g} deg/h is not small against the '
                    f'horizontal Earth rate {wc / DPH:.3g} deg/h: heading cannot be found on a '
                    f'still base (motion with GNSS aiding is needed)')
     return np.array([tilt, tilt, head]), warning
+
+
+def good_enough(window, noise, lat, duration):
+    """Tell whether a still base's coarse attitude is as good as its full window would give.
+
+    Issue 46. ``window``: the :meth:`CoarseWindow.arrays` so far; ``noise`` the configured
+    sensor model (NoiseSpec); ``lat`` rad, known; ``duration`` s the full window
+    (``coarse_duration``). The attitude's sigma is :func:`coarse_sigma`'s, with the white
+    noises the samples show where they are larger than the configured ones (the third
+    differences, :func:`~.noise_estimates.difference_density`, which smooth sway hardly
+    enters: a base shaken by knocks or an engine does not look confident). The window is
+    good enough when waiting for the rest of it would narrow no axis's sigma by more
+    than :data:`GOOD_ENOUGH` (relative): the fine filter would start from as good a point
+    (it runs over these samples anyway, :mod:`.reprocess`). A navigation-grade heading and
+    every tilt are at :func:`coarse_sigma`'s floors or bias terms within seconds; a
+    tactical heading, limited by the gyro bias, within 30 s. A gyro that cannot see Earth
+    rate (:func:`coarse_sigma`'s warning: a MEMS IMU) keeps the whole window: its heading
+    comes only with motion, and a base that is going to drive then ends its window soon
+    after it starts (:class:`~..inputs.motion.Onset`) instead of restarting a still-base
+    filter (on seed 003's car with an untold 90-deg yaw mounting, the restart's shorter
+    window hid the mounting from the sideslip check: 3.7 deg of roll under 0.7 deg).
+    """
+    tt, dth, dvv, dts = window
+    dt = float(np.median(dts))
+    moving = coarse.detect_motion(dth, dvv, dts, noise.gyro_arw, noise.accel_vrw)[0]
+    seen = replace(noise,
+                   gyro_arw=max(noise.gyro_arw, _density(difference_density(dth / dt, dt))),
+                   accel_vrw=max(noise.accel_vrw, _density(difference_density(dvv / dt, dt))))
+    if coarse_sigma(seen, duration, lat, moving)[1] is not None:
+        return False                    # no heading at rest: the window waits for motion
+    return _close_to_full(seen, float(np.sum(dts)), duration, lat, moving)
+
+
+def _close_to_full(noise, T, duration, lat, moving):
+    """Tell whether :func:`coarse_sigma` after ``T`` s is near its value after ``duration`` s.
+
+    Near: within :data:`GOOD_ENOUGH` (relative) on every axis.
+    """
+    now = coarse_sigma(noise, T, lat, moving)[0]
+    full = coarse_sigma(noise, max(duration, T), lat, moving)[0]
+    return bool(np.all(now <= (1.0 + GOOD_ENOUGH) * full))
+
+
+def expected_duration(noise, lat, cfg):
+    """Return the still base's window length (s) :func:`good_enough` gives with the model.
+
+    The first check (``coarse_min_duration``, then every :data:`CHECK_EVERY_S`) at which the
+    configured model's sigma is close to the full window's; ``coarse_duration`` when none is
+    (the forecast's, :mod:`~..forecast.expectation`: the samples may show more noise).
+    """
+    duration, T = cfg['coarse_duration'], cfg['coarse_min_duration']
+    if coarse_sigma(noise, duration, lat, False)[1] is not None:
+        return duration
+    while T < duration:
+        if _close_to_full(noise, T, duration, lat, False):
+            return T
+        T += CHECK_EVERY_S
+    return duration
+
+
+def _density(d):
+    """Return the estimate ``d`` (0 where it is NaN: too few samples to tell)."""
+    return 0.0 if not math.isfinite(d) else d
 
 
 def steady_velocity(V, v_sig):
@@ -190,8 +301,9 @@ def still_base(window, cfg, noise, position):
     if reason:
         return None, info, reason
     sigma, warning = coarse_sigma(noise, T, lat, moving)
-    return CoarseResult(C, sigma, position, info=info,
-                        warnings=[warning] if warning else []), info, None
+    return CoarseResult(C, sigma, position, info=info, warnings=[warning] if warning else [],
+                        sigma_linear=coarse_sigma(noise, T, lat, moving, floors=False)[0]), \
+        info, None
 
 
 def moving_base(window, cfg, noise, position, gnss, t_now, install=None):

@@ -2,8 +2,9 @@
 
 The heading 1-sigma of the last ten seconds is kept; once a stage has run for
 ``min_duration`` seconds and the sigma has fallen by less than 2 % over at least
-nine seconds, the stage has converged (the pipeline then restages the stationary
-filter or declares ``aligned``). Epochs at the same stamp count once, with the last sigma.
+nine seconds, the stage has converged (the still-base stage then restages the
+stationary filter where that helps; ``aligned`` is the settle test's,
+:mod:`.aligned_gate`). Epochs at the same stamp count once, with the last sigma.
 """
 from collections import deque
 

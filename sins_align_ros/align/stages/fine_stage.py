@@ -8,9 +8,10 @@ The stage talks to its engine through the declared contract only
 of its own (:mod:`.fine_stepping`, picked once when the stage starts): the stationary
 engine mechanizes whole blocks between its own filter epochs (vectorised); the GNSS-aided
 engines step sample by sample and take each queued GNSS epoch at the first sample at or
-past its stamp. Either way, every filter epoch is followed by the convergence check
-(:class:`~.convergence.ConvergenceMonitor`): a converged stage restages the
-stationary filter (up to ``max_stages``) or turns ``fine`` into ``aligned``.
+past its stamp. Either way, every filter epoch is followed by the settle check and the
+``aligned`` gate; on a still base also by the convergence check
+(:class:`~.convergence.ConvergenceMonitor`), whose converged first stage restages the
+stationary filter (up to ``max_stages``).
 
 The GNSS-aided engines' innovations are checked against their covariance
 (:class:`~.consistency.ConsistencyMonitor`); an inconsistent filter has its covariance
@@ -23,13 +24,12 @@ moves (:mod:`.motion_check`: vibration and turns the coarse window did not show)
 thresholds and the consistency checks pass). It is declared at the first filter epoch
 where that is true and the estimate has settled, and left only on a clear failure
 (:mod:`.aligned_gate`, issue 46: hysteresis on the thresholds and on the consistency
-monitor, the hard conditions at once); ``why_not_aligned`` says why. A GNSS-aided stage
-has settled once its updates' corrections no longer shrink
-(:class:`~.aligned_gate.SettleTest`); a still-base stage once its last stage has
-converged (its convergence restages it). An aided filter's sigma may keep shrinking for
-minutes (a USV's heading from its sway, 14' and still falling at 300 s); waiting for it
-to stop, as the still-base stages do, left such runs ``fine`` to the end with an
-attitude far inside the bounds. A heading the sensors
+monitor, the hard conditions at once); ``why_not_aligned`` says why. A stage has settled
+once its updates' corrections no longer shrink (:class:`~.aligned_gate.SettleTest`),
+whatever its kind. A filter's sigma may keep shrinking for minutes (a USV's heading from
+its sway, 14' and still falling at 300 s; a still navigation-grade base's heading over
+its first minute); waiting for it to stop left such runs ``fine`` to the end with an
+attitude far inside the bounds, or ``aligned`` 30 s after it was right. A heading the sensors
 cannot observe (``heading_known`` False: a gyro that cannot see Earth rate at rest) is
 published with the variance of an unknown angle, :data:`HEADING_UNKNOWN_VAR`, and the
 roll/pitch variances are then at least ``tilt_bound``: with the heading unknown the
@@ -154,6 +154,11 @@ class FineStage(EpochUpdates):
         return self.stepping.moving
 
     @property
+    def moved_off(self):
+        """Tell whether the stage ended because its base moved while GNSS came (still base)."""
+        return self.stepping.moved_off
+
+    @property
     def floor(self):
         """Variances (3,) rad^2 added to the engine's attitude covariance at output.
 
@@ -256,9 +261,10 @@ class FineStage(EpochUpdates):
         if self.moving:
             self.phase = FINE
             return
-        sig_u = math.sqrt(max(P[2, 2], 0.0))
+        # asked at every epoch: a still-base stage may restage after it has settled
+        settled = self.stepping.settled(t, math.sqrt(max(P[2, 2], 0.0)))
         if not self.converged:
-            if not self.stepping.settled(t, sig_u):
+            if not settled:
                 return
             self.converged = True
         if self.phase == FINE:

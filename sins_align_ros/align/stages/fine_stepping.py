@@ -6,9 +6,11 @@ asking again:
 
 * :class:`StillStepping` (a :class:`~..engines.base.StillEngine`, seed 002): the engine
   mechanizes whole blocks up to its own zero-velocity epoch (vectorised); each epoch is
-  followed by the rest watch (:mod:`~..engines.still_watch`) and the convergence check,
-  and the converged stage may be restaged. A block's rows all take the covariance after
-  its epoch.
+  followed by the rest watch (:mod:`~..engines.still_watch`) and the convergence check: a
+  first stage whose heading sigma stopped falling may be restaged. The stage has settled
+  by the settle test on its epochs' corrections, as an aided one (issue 46: waiting for the
+  sigma to stop falling held a still navigation-grade base 30 s after it was right). A
+  block's rows all take the covariance after its epoch.
 * :class:`AidedStepping` (an :class:`~..engines.base.AidedEngine`): the engine is stepped
   in compiled stretches (or sample by sample on the live path) up to the sample each queued
   GNSS epoch or external heading is due at (:mod:`.fine_epochs`); rows are cut where the
@@ -41,12 +43,11 @@ GNSS_RECENT_S = 5.0
 class StillStepping:
     """Step a still-base engine by its own epochs (module docstring); owns the rest watch."""
 
-    #: a still-base stage settles when its heading sigma stops falling (no settle test)
-    settle = None
-
     def __init__(self, stage, cfg):
         self.stage = stage
         self.engine: StillEngine = stage.engine
+        #: the epochs' corrections (:class:`~.aligned_gate.SettleTest`)
+        self.settle = SettleTest(stage.t0)
         #: whether the base still rests (:mod:`~..engines.still_watch`)
         self.still = StillWatch(self.engine, cfg['fine_update_hz'], cfg['coarse_duration'],
                                 cfg['gyro_bias_instability_dph'] * DPH)
@@ -56,23 +57,30 @@ class StillStepping:
         """Why the base is taken as moving without GNSS ('' at rest)."""
         return self.still.moving
 
+    @property
+    def moved_off(self):
+        """Tell whether the stage ended because the base moved while GNSS came."""
+        return self.still.moved_off
+
     def settled(self, t, sigma_heading):
         """Tell whether the stage has settled at the epoch at ``t``; restage it if that helps.
 
-        The heading's 1-sigma ``sigma_heading`` (rad) must have stopped falling
-        (:class:`~.convergence.ConvergenceMonitor`); then a first stage is restaged (up to
-        ``max_stages``) where a restage helps (:func:`~..engines.stationary.restage_helps`).
+        A first stage whose heading 1-sigma ``sigma_heading`` (rad) stopped falling
+        (:class:`~.convergence.ConvergenceMonitor`) is restaged (up to ``max_stages``) where
+        a restage helps (:func:`~..engines.stationary.restage_helps`): it starts settling
+        again. Settled: the settle test on the epochs' corrections (:mod:`.aligned_gate`).
         """
         s, eng = self.stage, self.engine
-        if not s.monitor.converged(t, sigma_heading):
-            return False
-        if eng.restage_helps and s.stage < s.max_stages:
+        if (eng.restage_helps and s.stage < s.max_stages
+                and s.monitor.converged(t, sigma_heading)):
             eng.restage()
             s._att_cov = None
             s.stage += 1
             s.monitor.start(t)
+            self.settle = SettleTest(t)
             return False
-        return True
+        P = s.attitude_cov()
+        return self.settle.settled(t, np.sqrt(np.maximum(P.diagonal(), 0.0)))
 
     def _epoch(self, t, gnss):
         """After a zero-velocity epoch at ``t``: the rest watch; the reason to end, or None.
@@ -86,11 +94,20 @@ class StillStepping:
         if event == 'resume':                   # filtering again: it must settle again
             s.converged = False
             s.monitor.start(t)
+            self.settle = SettleTest(t)
         elif event == 'coast':
             s.phase = FINE
         if event is not None:
             s._att_cov = None
         return reason
+
+    def _note_epoch(self, t):
+        """Give the settle test the correction the epoch at ``t`` fed back.
+
+        (The engine's ``exp([phi x])`` is :func:`~.aligned_gate.rotation_vector`'s
+        ``-phi``; the test compares sums, so only the sign convention must be one.)
+        """
+        self.settle.add(t, -self.engine.last_correction)
 
     def _heading_sigma(self):
         """Return the published heading's 1-sigma (rad); pi when the gyros cannot find north."""
@@ -110,6 +127,7 @@ class StillStepping:
         self.still.push(t[i:j], dtheta[i:j], dv[i:j], t_prev)
         reason = None
         if epoch:
+            self._note_epoch(c.t_last)
             reason = self._epoch(c.t_last, gnss)
             C[-1] = eng.mech.C_b_n
             if reason is None:
@@ -130,6 +148,7 @@ class StillStepping:
         c.t_last = t
         self.still.push(t, dtheta, dv, t - dt)
         if epoch:
+            self._note_epoch(t)
             reason = self._epoch(t, gnss)
             C = eng.mech.C_b_n
             if reason is not None:
@@ -146,8 +165,10 @@ class StillStepping:
 class AidedStepping:
     """Step a GNSS-aided engine to each queued epoch (module docstring)."""
 
-    #: a GNSS-aided engine is never taken as moving without GNSS (its base may move)
+    #: a GNSS-aided engine is never taken as moving without GNSS (its base may move), and
+    #: its stage never ends for motion
     moving = ''
+    moved_off = False
 
     def __init__(self, stage):
         self.stage = stage

@@ -10,7 +10,9 @@ what runs next, without changing the pipeline:
    says whether the gyros can find north;
 4. the coarse attitude (:mod:`.coarse_stage`), its heading replaced by a recent external
    one (:mod:`.heading`);
-5. the engine and the fine stage (:mod:`.factory`, :mod:`.fine_stage`).
+5. the engine and the fine stage (:mod:`.factory`, :mod:`.fine_stage`);
+6. a still-base stage starts at the window's first sample and runs over its samples
+   (:mod:`.reprocess`).
 
 :class:`~.pipeline.AlignmentPipeline` applies the :class:`FineStart` it returns, or
 restarts from coarse with the reason.
@@ -18,7 +20,7 @@ restarts from coarse with the reason.
 from dataclasses import dataclass
 
 from ...models.stationary import unobservable_variance
-from . import coarse_stage, self_check
+from . import coarse_stage, reprocess, self_check
 from ..inputs import motion
 from ..engines.factory import is_aided, make_engine, noise_spec
 from .fine_stage import FineStage
@@ -57,7 +59,8 @@ def hand_over(window, cfg, noise, clock, gnss, headings, install):
 
     ``window``: the coarse window's arrays (``CoarseWindow.arrays``); ``cfg`` and
     ``noise``: the parameters and sensor model as configured (not changed here);
-    ``clock``: the pipeline's :class:`~.fine_stage.Clock` (at the window's end);
+    ``clock``: the pipeline's :class:`~.fine_stage.Clock` (at the window's end, where a
+    reprocessing stage leaves it too);
     ``gnss``, ``headings``, ``install``: the pipeline's GNSS history, external headings
     and installation (read only).
     """
@@ -96,11 +99,20 @@ def hand_over(window, cfg, noise, clock, gnss, headings, install):
     warnings.extend(w for w in res.warnings if not (no_heading and w.startswith('gyro bias')))
     heading_known = (check is None or check.heading_observable
                      or (aided and not check.at_rest) or heading_measured)
+    replay = reprocess.applies(cfg, aided, heading_measured, headings)
+    if replay:                      # the stage starts where the window began
+        res = reprocess.start_of_window(res, window, noise, coarse_info['method'])
+        clock.t_last = clock.t_first
     fine, engine_warnings = fine_stage_for(res, cfg, noise, bool(gnss.vels), heading_known,
                                            heading_measured, clock, install, headings)
     warnings.extend(engine_warnings)
     if check is not None:
         fine.mounting_doubt = check.mounting_doubt
+    if replay:
+        reason = reprocess.catch_up(fine, window, gnss)
+        if reason is not None:
+            return None, reason
+        coarse_info['reprocessed_s'] = float(window[0][-1] - window[0][0] + window[3][0])
     return FineStart(cfg, noise, aided, position, position_source, check, coarse_info,
                      heading_measured, warnings, fine, install), None
 

@@ -1,0 +1,93 @@
+"""Store and reprocess: a still-base fine stage starts at the coarse window's first sample.
+
+Issue 46. The coarse window's samples used to be thrown away once the coarse attitude was
+found: the fine filter began at the window's end and had to gather the same information
+again, so a still navigation-grade base that the data had aligned in 20 s waited for the
+filter's own 20 s and more. Here the fine stage starts where the window began and runs
+over the window's stored samples (:meth:`~.coarse_stage.CoarseWindow.arrays`) before it
+goes on with the live ones; at the window's end it holds what a filter started at the
+first sample would hold. As PSINS's ``CAlignsv`` does with its inertial-frame coarse
+alignment (there two samples per incoming sample until it catches up; here at once, the
+still-base engine mechanizes whole blocks between its epochs: 60 s at 1 kHz in well
+under a second, bench/results/time_to_align.md).
+
+**The prior does not count the samples twice.** The coarse attitude, found from these
+samples, is only the point the filter linearises about (moved to the window's start,
+:func:`start_of_window`). The filter's initial covariance is :func:`~.coarse_stage.
+coarse_sigma` for :data:`PRIOR_SHARE` of the window: three times the 1-sigma that share
+of the samples would give, so it claims at most ``PRIOR_SHARE / 9`` of the white-noise
+information the filter then takes from the window itself, and often nothing (its floors,
+0.5 deg of heading and 0.05 deg of tilt, are far wider than a navigation-grade window
+leaves). A test runs the same window with a prior ten times wider: the sigma at the
+window's end differs by the prior's share, a few per cent.
+
+**What is published is causal.** The rows of the reprocessed samples are not published
+again (they went out as ``coarse`` when the samples came); the stage's first published row
+is the window's last sample, and a stage that reached ``aligned`` inside the window is
+taken as aligned from that row (:attr:`~.fine_stage.FineStage.t_aligned`).
+
+Where it applies (:func:`applies`): a still-base filter (the seed 002 family) with no
+external heading in play (an external heading set the coarse heading from a message the
+window also holds; applying it again as a measurement would count it twice). The
+GNSS-aided filters start at the window's end as before: their reprocessing would move the
+position and velocity back over a base that drove (not built; docs/design.md).
+"""
+from dataclasses import replace
+
+import numpy as np
+
+from ...nav import coarse
+from .coarse_stage import coarse_sigma
+
+#: the prior claims the white-noise information of this share of the window, at 3 sigma
+PRIOR_SHARE = 0.1
+
+
+def applies(cfg, aided, heading_measured, headings):
+    """Tell whether the fine stage reprocesses the window (module docstring).
+
+    ``cfg``: the parameters (``coarse_reprocess``); ``aided``: the fine filter is
+    GNSS-aided; ``heading_measured``: an external heading set the coarse heading;
+    ``headings``: the :class:`~..inputs.heading.HeadingBuffer` (any heading waiting).
+    """
+    return (cfg['coarse_reprocess'] and not aided and not heading_measured
+            and not headings.pending)
+
+
+def start_of_window(res, window, noise, method):
+    """Return the coarse result ``res`` moved to the window's start, with the prior's sigma.
+
+    ``window``: the coarse window's arrays; ``noise`` the sensor model (NoiseSpec);
+    ``method``: the coarse method that ran. The analytic (TRIAD) attitude is the
+    window's mean on a base that does not turn, the same at its start; the inertial-frame
+    one is the fit at the window's end, turned back by the gyros and the Earth
+    (:func:`~sins_align_ros.nav.coarse.attitude_at_start`). Returns a new
+    :class:`~.coarse_stage.CoarseResult`.
+    """
+    tt, dth, dvv, dts = window
+    lat = float(res.position[0])
+    C = res.C_b_n
+    if method != 'analytic':
+        C = coarse.attitude_at_start(C, dth, dts, lat)
+    moving = bool(res.info.get('motion_detected', False))
+    sigma, _ = coarse_sigma(noise, PRIOR_SHARE * float(np.sum(dts)), lat, moving)
+    return replace(res, C_b_n=C, sigma=np.maximum(sigma, res.sigma))
+
+
+def catch_up(fine, window, gnss):
+    """Run the fine stage over the window's samples; return the reason it diverged, or None.
+
+    ``fine``: the stage, its clock at the window's start; ``gnss``: the pipeline's
+    :class:`~..inputs.gnss_buffer.GnssBuffer` (the rest watch reads its last fix). The
+    rows are dropped (module docstring); an ``aligned`` reached inside the window counts
+    from its last sample.
+    """
+    tt, dth, dvv, _ = window
+    i = 0
+    while i < len(tt):
+        _, i, reason = fine.run(tt, dth, dvv, i, gnss)
+        if reason is not None:
+            return reason
+    if fine.t_aligned is not None:
+        fine.t_aligned = float(tt[-1])
+    return None
