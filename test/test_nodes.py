@@ -325,13 +325,13 @@ def test_end_to_end_simulator_and_alignment_node_against_truth(ros_context, doma
     try:
         assert spin_until(ex, lambda: diag, timeout_s=30.0)     # the node is up
         sim = subprocess.Popen([resolve_executable('simulator_node'), '--ros-args',
-                                '-p', 'scenario:=static_navigation', '-p', 'duration:=200.0',
-                                '-p', 'real_time_factor:=10.0', '-p', 'seed:=4',
+                                '-p', 'scenario:=static_navigation', '-p', 'duration:=100.0',
+                                '-p', 'real_time_factor:=5.0', '-p', 'seed:=4',
                                 '-p', 'start_time:=2000.0', '-p', 'shutdown_when_done:=true'],
                                env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                                text=True)
         assert spin_until(ex, lambda: sim.poll() is not None, timeout_s=120.0)
-        end = 2200 * 10 ** 9              # the last output and the truth at its stamp
+        end = 2100 * 10 ** 9              # the last output and the truth at its stamp
         # the simulator waited for our acknowledgements before exiting: nothing is lost
         assert spin_until(ex, lambda: out and stamp_to_ns(out[-1].header.stamp) == end and truth
                           and stamp_to_ns(truth[-1].header.stamp) >= end, timeout_s=5.0)
@@ -340,18 +340,25 @@ def test_end_to_end_simulator_and_alignment_node_against_truth(ros_context, doma
         stop_processes([sim, align])
     assert sim.returncode == 0, sim.stderr.read()
     assert align.returncode == 0, align.stderr.read()
-    phases = [_diag_values(m).get('phase') for m in diag]
+    # (a diagnostics message of a stopped input says 'fine' for 'aligned': the simulator's
+    # pauses at 5x and its end)
+    phases = [_diag_values(m).get('phase') for m in diag
+              if 'no IMU data' not in m.status[0].message]
     seen = [p for i, p in enumerate(phases) if i == 0 or p != phases[i - 1]]
-    # the window ends at 20 s and the stage, run over it, may hand over aligned (issue 46)
+    # the window ends at 20 s and the stage, run over it, may hand over aligned (issue 46).
+    # (100 s at 5x: at 10x, 1000 messages a second, a CI run whose other core was busy saw
+    # the phase leave aligned, as a still base does when lost samples look like motion)
+    why = [(_diag_values(m).get('elapsed_s'), _diag_values(m).get('not_aligned_reason'))
+           for m in diag if _diag_values(m).get('phase') == 'fine']
     assert seen in (['waiting', 'coarse', 'fine', 'aligned'], ['waiting', 'coarse', 'fine'],
-                    ['waiting', 'coarse', 'aligned']), seen
+                    ['waiting', 'coarse', 'aligned']), (seen, why[:3])
     last = out[-1]
-    assert stamp_to_ns(last.header.stamp) == 2200 * 10 ** 9
+    assert stamp_to_ns(last.header.stamp) == 2100 * 10 ** 9
     tq = {stamp_to_ns(m.header.stamp): m.pose.pose.orientation for m in truth}[
         stamp_to_ns(last.header.stamp)]
     q = last.orientation
     err = attitude_error(quat_to_dcm([q.x, q.y, q.z, q.w]), quat_to_dcm([tq.x, tq.y, tq.z, tq.w]))
-    band = scenario_limits(scenario('static_navigation'), 170.0).tolerance()
+    band = scenario_limits(scenario('static_navigation'), 70.0).tolerance()
     assert np.all(np.abs(err) <= band), (err / ARCMIN, band / ARCMIN)
     cov = np.array(last.orientation_covariance).reshape(3, 3)
     assert np.all(np.abs(err) <= 3 * np.sqrt(np.diag(cov)))
