@@ -10,7 +10,6 @@ misalignment against the published roll, pitch and yaw 1-sigma).
 Usage: python bench/time_to_align.py [--runs 10] [--jobs 2] [--out bench/results/time_to_align.md]
 """
 import argparse
-import math
 import platform
 import subprocess
 import sys
@@ -21,9 +20,9 @@ import numpy as np
 
 from sins_align_ros.eval.errors import attitude_errors
 from sins_align_ros.eval.run import run_scenario
-from sins_align_ros.nav import earth
+from sins_align_ros.eval.scenarios import named
+from sins_align_ros.eval.limits import scenario_limits
 from sins_align_ros.sim.presets import scenario, starting_still, translates
-from sins_align_ros.units import DPH, DPSH
 
 #: (scenario, filter, what it is)
 CASES = (
@@ -56,20 +55,18 @@ def _still_navigation(lat):
 def heading_limit(sc, t):
     """Return the analytic heading limit (rad) of a still base after ``t`` (s) of data.
 
-    ``(1.2 eps + 3 N / sqrt(t)) / (W cos L)``: the gyro bias ``eps`` and angle random walk
-    ``N`` of the scenario's IMU over the horizontal Earth rate (seed 002 eq. 15 with the
-    noise of a t-second average; the bound issue 46 holds the still bases to).
+    The band of issue 3 (``eval.limits.scenario_limits``): 1.2 x the heading error the
+    east gyro bias leaves plus 3 x the angle random walk's over ``t``, over the horizontal
+    Earth rate (seed 002 eq. 15); the limit issue 46 holds the still bases to.
     """
-    s = sc.imu
-    wc = earth.OMEGA_IE * math.cos(math.radians(sc.trajectory.lat_deg))
-    eps = float(np.max(np.abs(s.gyro_bias_dph))) * DPH
-    return (1.2 * eps + 3.0 * s.gyro_arw_dpsh * DPSH / np.sqrt(np.maximum(t, 1e-3))) / wc
+    band = scenario_limits(sc, 1.0)
+    return 1.2 * band.bias[2] + 3.0 * band.noise[2] / np.sqrt(np.maximum(t, 1e-3))
 
 
 def one(job):
     """Run a (scenario, filter, seed) job; return its figures."""
     scen, filt, seed = job
-    sc = BUILT[scen]() if scen in BUILT else scenario(scen)
+    sc = BUILT[scen]() if scen in BUILT else named(scen, None)
     run = run_scenario(sc, seed, filt, cached=True)
     t = run.out.t - run.data.imu.t[0]
     al = np.asarray(run.out.phase) == 'aligned'
@@ -144,7 +141,7 @@ def main():
         'which the heading error stays inside 1 deg and inside its 3 sigma (- never); '
         '"in limit": on a still or moored base, the worst run\'s share of `aligned` rows '
         'whose heading error is inside the analytic limit for the data seen so far, '
-        '(1.2 x gyro bias + 3 x ARW / sqrt(t)) / (Earth rate x cos L).', '',
+        '(1.2 x east gyro bias + 3 x ARW / sqrt(t)) / (Earth rate x cos L).', '',
         '| scenario | filter | what | runs aligned | aligned at (s) | moving from (s) '
         '| heading good from (s) | switches, max (sum) | end aligned | inside 3 sigma '
         '| in limit |',
