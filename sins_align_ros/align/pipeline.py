@@ -296,7 +296,7 @@ class AlignmentPipeline:
                     c.t_last = t[j - 1]
                 w.judge(c.t_first, self.cfg, self.noise, self.gnss, still)
                 out = unknown(t[i:j], COARSE)
-                if self.window.full:
+                if w.full:
                     self._finish_coarse()
                     if self.fine is not None and j > i:   # else degenerate: coarse again
                         out.phase[-1] = self.fine.phase   # aligned after a reprocessing
@@ -407,5 +407,4 @@ class AlignmentPipeline:
         if onset.t is not None:
             self.onset = onset
         self.window.prefill(*kept)
-        self.window.t_check = math.inf  # no end when good enough: it waits for the motion
         self.clock.t_first = kept[0]

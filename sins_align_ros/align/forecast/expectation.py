@@ -60,7 +60,7 @@ from ..stages.aligned_gate import SETTLE_S
 from ..engines.factory import is_aided
 from ..stages.fine_stage import Clock
 from ..stages.handover import fine_stage_for
-from ..stages.reprocess import PRIOR_SHARE
+from ..stages.reprocess import prior_sigma
 from ..inputs.motion import choose_filter, gnss_motion
 from .variance import covariance_shadow, first_aligned, heading_limit_var, process_noise, riccati
 
@@ -319,8 +319,7 @@ def _new_stage(p):
     heading = _heading_source(p)
     replay = cfg['coarse_reprocess'] and heading is None
     if replay:
-        sigma = np.maximum(sigma, coarse_stage.coarse_sigma(p.noise, PRIOR_SHARE * T, lat,
-                                                            False)[0])
+        sigma = prior_sigma(p.noise, T, lat, False, sigma)
     if heading is not None:          # the coarse stage takes the external heading
         sigma[2] = math.sqrt(heading[0])
     start = coarse_stage.CoarseResult(np.eye(3), sigma, np.asarray(position, float))

@@ -86,11 +86,14 @@ class CoarseWindow:
         """Begin the window with samples already processed (a restart's, :mod:`.sample_store`).
 
         ``t_before``: the stamp the first one's interval starts at; ``t`` (N,) stamps,
-        ``dtheta``, ``dv`` (N, 3) increments.
+        ``dtheta``, ``dv`` (N, 3) increments. A restart for motion begins so: its window
+        waits for the motion's onset (or its full length), never for the good-enough end
+        (no check is planned).
         """
         self.parts = [(t, dtheta, dv)]
         self.T = float(t[-1] - t_before)
         self._t_last = float(t[-1])
+        self.t_check = math.inf
 
     @property
     def full(self):
@@ -207,18 +210,20 @@ def good_enough(window, noise, lat, duration):
     seen = replace(noise,
                    gyro_arw=max(noise.gyro_arw, _density(difference_density(dth / dt, dt))),
                    accel_vrw=max(noise.accel_vrw, _density(difference_density(dvv / dt, dt))))
-    if coarse_sigma(seen, duration, lat, moving)[1] is not None:
-        return False                    # no heading at rest: the window waits for motion
     return _close_to_full(seen, float(np.sum(dts)), duration, lat, moving)
 
 
 def _close_to_full(noise, T, duration, lat, moving):
     """Tell whether :func:`coarse_sigma` after ``T`` s is near its value after ``duration`` s.
 
-    Near: within :data:`GOOD_ENOUGH` (relative) on every axis.
+    Near: within :data:`GOOD_ENOUGH` (relative) on every axis. Never where the gyro cannot
+    see Earth rate (:func:`coarse_sigma`'s warning): no heading at rest, the window waits
+    for motion.
     """
+    full, warning = coarse_sigma(noise, max(duration, T), lat, moving)
+    if warning is not None:
+        return False
     now = coarse_sigma(noise, T, lat, moving)[0]
-    full = coarse_sigma(noise, max(duration, T), lat, moving)[0]
     return bool(np.all(now <= (1.0 + GOOD_ENOUGH) * full))
 
 
@@ -230,8 +235,6 @@ def expected_duration(noise, lat, cfg):
     (the forecast's, :mod:`~..forecast.expectation`: the samples may show more noise).
     """
     duration, T = cfg['coarse_duration'], cfg['coarse_min_duration']
-    if coarse_sigma(noise, duration, lat, False)[1] is not None:
-        return duration
     while T < duration:
         if _close_to_full(noise, T, duration, lat, False):
             return T

@@ -54,6 +54,16 @@ def applies(cfg, aided, heading_measured, headings):
             and not headings.pending)
 
 
+def prior_sigma(noise, T, lat, moving, sigma):
+    """Return the reprocessing prior (3,) rad of a window of ``T`` s (module docstring).
+
+    :func:`~.coarse_stage.coarse_sigma` for :data:`PRIOR_SHARE` of the window (``noise``
+    the sensor model, ``lat`` rad, ``moving`` the window showed motion), never narrower
+    than the coarse result's own ``sigma`` (3,).
+    """
+    return np.maximum(coarse_sigma(noise, PRIOR_SHARE * T, lat, moving)[0], sigma)
+
+
 def start_of_window(res, window, noise, method):
     """Return the coarse result ``res`` moved to the window's start, with the prior's sigma.
 
@@ -70,8 +80,8 @@ def start_of_window(res, window, noise, method):
     if method != 'analytic':
         C = coarse.attitude_at_start(C, dth, dts, lat)
     moving = bool(res.info.get('motion_detected', False))
-    sigma, _ = coarse_sigma(noise, PRIOR_SHARE * float(np.sum(dts)), lat, moving)
-    return replace(res, C_b_n=C, sigma=np.maximum(sigma, res.sigma))
+    return replace(res, C_b_n=C,
+                   sigma=prior_sigma(noise, float(np.sum(dts)), lat, moving, res.sigma))
 
 
 def catch_up(fine, window, gnss):
