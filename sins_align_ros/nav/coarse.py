@@ -47,11 +47,17 @@ def analytic(dtheta, dv, dt, lat):
     C_b_n : ndarray (3, 3)
     """
     T = np.sum(np.broadcast_to(dt, (len(dtheta),)))
-    f_b = np.sum(dv, axis=0) / T
-    w_b = np.sum(dtheta, axis=0) / T
+    return triad(np.sum(dv, axis=0) / T, np.sum(dtheta, axis=0) / T, lat)
+
+
+def triad(f_b, w_b, lat):
+    """Return ``C_b_n`` (3, 3) of a still body from its mean specific force and rate (3,).
+
+    ``f_b`` m/s^2 and ``w_b`` rad/s in body FLU, ``lat`` rad: gravity's reaction exactly
+    up, the Earth rate matched as well as possible (:func:`analytic`'s attitude).
+    """
     f_n = np.array([0.0, 0.0, 1.0])              # up: the specific force of a still body
-    w_n = earth.w_ie_n(lat)
-    return _triad(f_b, w_b, f_n, w_n)
+    return _triad(f_b, w_b, f_n, earth.w_ie_n(lat))
 
 
 def body_attitude_increments(dtheta):

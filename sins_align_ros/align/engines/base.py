@@ -99,6 +99,8 @@ class StillEngine(Engine, Protocol):
     #: the misalignment (3,) rad the last epoch fed back, ``C = exp([phi x]) C~`` (zero
     #: when it updated nothing): what the settle test sums
     last_correction: np.ndarray
+    #: live gyrocompass segments (:class:`~.gyrocompass.GyroSegments`) or None
+    gyro_segments: object
 
     def run_block(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, i: int,
                   t_last: float) -> Tuple[int, np.ndarray, bool]:
@@ -118,6 +120,13 @@ class StillEngine(Engine, Protocol):
 
     def restage(self) -> None:
         """Re-initialise the filter from the corrected attitude (seed 002 sec. 4)."""
+
+    def gyrocompass_update(self, yaw: float, var: float) -> Tuple[float, float]:
+        """Update with a still base's gyrocompass ``yaw`` (rad, white-noise ``var`` rad^2).
+
+        Its measurement row carries the biases the heading cannot be told from at rest.
+        Returns the innovation (rad) and its predicted 1-sigma.
+        """
 
 
 @runtime_checkable

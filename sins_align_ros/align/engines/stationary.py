@@ -31,13 +31,13 @@ import numpy as np
 from ...filters import kf
 from ...filters.chi2 import chi2_quantile
 from .gnss_gate import GnssGate
-from ..inputs.heading import LINEAR_MAX, take_heading
+from ..inputs.heading import LINEAR_MAX, take_heading, wrap, yaw_of, yaw_row
 from .heading_update import gated_yaw_update
 from .still_coast import StillCoast
 from .still_watch import P_FALSE, ROLLBACK_S
 from ...models.stationary import unobservable_variance
 from ...nav import earth
-from ...nav.frames import rotvec_to_dcm
+from ...nav.frames import dcm_to_rotvec, rotvec_to_dcm
 from ...nav.mechanization import StationaryStrapdown
 
 #: the filter period is reached when the accumulated time is within this of it, s
@@ -138,6 +138,8 @@ class StationaryEngine(StillCoast):
         #: back (a rollback when the base is found moving), the start first
         self._recent = deque([(self.P, np.zeros(3), np.zeros(3))],
                              maxlen=int(np.ceil(ROLLBACK_S / self.period)) + 1)
+        #: live gyrocompass segments (:class:`~.gyrocompass.GyroSegments`) or None
+        self.gyro_segments = None
 
     # -- stepping --------------------------------------------------------------------------
     def run_block(self, t, dtheta, dv, i, t_last):
@@ -155,6 +157,8 @@ class StationaryEngine(StillCoast):
                 break
         dts = np.diff(np.concatenate([[t_last], t[i:j]]))
         C = self.mech.run(dtheta[i:j], dv[i:j], dts)['C_b_n']
+        if self.gyro_segments is not None:
+            self.gyro_segments.add(dtheta[i:j], dv[i:j], dts)
         self.since_update = acc
         epoch = acc >= self.period - _EPS_T
         if epoch:
@@ -165,6 +169,8 @@ class StationaryEngine(StillCoast):
     def step(self, dtheta, dv, dt):
         """Mechanize one sample (scalar path); returns ``(C_b_n, epoch)``."""
         C = self.mech.step(dtheta, dv, dt)
+        if self.gyro_segments is not None:
+            self.gyro_segments.add(dtheta[None], dv[None], dt)
         self.since_update += dt
         if self.since_update >= self.period - _EPS_T:
             self._epoch(self.since_update)
@@ -181,6 +187,8 @@ class StationaryEngine(StillCoast):
         self.last_correction = np.zeros(3)
         if self.coast is not None:
             self.coast.advance(dt, float(np.hypot(*self.mech.v_n[:2])))
+            if self.gyro_segments is not None:
+                self.gyro_segments.spoil()
             return
         m = self.model
         Phi, Qd = self._discretize(dt)
@@ -194,14 +202,35 @@ class StationaryEngine(StillCoast):
             self.x, self.P = x, P
             self.n_gated += 1
             self._recent.append((P, np.zeros(3), np.zeros(3)))
+            if self.gyro_segments is not None:
+                self.gyro_segments.spoil()
             return
         self.x, self.P, y, S = kf.update(x, P, z, self.H, self.R)
         self.n_updates += 1
         dvel = np.zeros(3)
         dvel[m.meas] = self.x[m.i_v]
         self.last_correction = self.x[m.i_phi].copy()
-        self._recent.append((self.P, self.last_correction, dvel))
         self._feed_back()
+        self._gyro_epoch()
+        self._recent.append((self.P, self.last_correction, dvel))
+
+    def _gyro_epoch(self):
+        """Take a full live gyrocompass segment's heading (:mod:`.gyrocompass`), if one is due.
+
+        Its correction is added to :attr:`last_correction` (the settle test sums what each
+        epoch changed).
+        """
+        seg = self.gyro_segments
+        if seg is None:
+            return
+        fix = seg.take()
+        if fix is not None:
+            C0 = self.mech.C_b_n
+            self.gyrocompass_update(*fix)
+            self.last_correction = (self.last_correction
+                                    + dcm_to_rotvec(self.mech.C_b_n @ C0.T))
+        if seg.done:
+            self.gyro_segments = None
 
     def _feed_back(self):
         """Feedback: ``C = exp([phi x]) C~`` (seed 002 eq. 3), velocity error removed."""
@@ -245,6 +274,41 @@ class StationaryEngine(StillCoast):
             result = 'used'
         self.heading_measured()
         return result
+
+    def gyrocompass_update(self, yaw, var):
+        """Update with the heading ``yaw`` (rad) the window's averaged gyros give; (y, sigma).
+
+        ``var`` (rad^2): that heading's white-noise variance. The analytic (gyrocompass)
+        attitude of a still base is the one at which this model sees no drift, so it
+        carries the biases the model cannot tell from the misalignment at rest (seed 002
+        eq. 15) and the measurement row takes the bias states too: ``phi_a = M b``, the
+        misalignment that zeroes the horizontal velocity drift and the east tilt drift of
+        :meth:`~sins_align_ros.models.stationary.StationaryModel.F` for biases ``b``, is
+        the analytic attitude's own error, so ``yaw_a = yaw(C~) + h (phi - M b) + noise``
+        with ``h`` the yaw row (:func:`~..inputs.heading.yaw_row`). The update narrows the
+        heading along what the gyros saw and leaves the heading's :attr:`bound` (the
+        biases) as it was. Returns the innovation (rad) and its predicted 1-sigma.
+        """
+        m = self.model
+        C = self.mech.C_b_n
+        F = m.F(C, self.lat, self.g)
+        ip = m.i_phi
+        ib = np.setdiff1d(np.arange(m.n), np.concatenate([m.i_v, ip]))
+        rows = np.concatenate([m.i_v[:2], ip[:1]])
+        M = -np.linalg.solve(F[np.ix_(rows, ip)], F[np.ix_(rows, ib)])
+        h = yaw_row(C)
+        H = np.zeros(m.n)
+        H[ip] = h
+        H[ib] = -h @ M
+        y = wrap(yaw - yaw_of(C) - float(H @ self.x))
+        PHt = self.P @ H
+        S = float(H @ PHt) + var
+        K = PHt / S
+        A = np.eye(m.n) - np.outer(K, H)
+        P = A @ self.P @ A.T + var * np.outer(K, K)
+        self.x, self.P = self.x + K * y, 0.5 * (P + P.T)
+        self._feed_back()
+        return y, float(np.sqrt(S))
 
     def heading_measured(self):
         """Drop the heading's :attr:`bound`: an external heading, not the gyro bias, sets it."""

@@ -58,8 +58,10 @@ from ...nav.frames import dcm_to_euler, euler_cov_from_phi_cov
 from ..stages import coarse_stage
 from ..stages.aligned_gate import SETTLE_S
 from ..engines.factory import is_aided
+from ..engines.gyrocompass import GyroSegments
 from ..stages.fine_stage import Clock
 from ..stages.handover import fine_stage_for
+from ..stages import reprocess
 from ..stages.reprocess import prior_sigma
 from ..inputs.motion import choose_filter, gnss_motion
 from .variance import covariance_shadow, first_aligned, heading_limit_var, process_noise, riccati
@@ -307,8 +309,10 @@ def _new_stage(p):
     The stamps: where the stage starts, and its first row (the window's end).
     The window lasts what the configured model gives (:func:`~.coarse_stage.
     expected_duration`); the stage starts at its first sample with the reprocessing prior
-    (:mod:`~..stages.reprocess`) unless ``coarse_reprocess`` is off or an external heading
-    sets the coarse heading (then at the window's end, from the coarse sigma).
+    (:mod:`~..stages.reprocess`) and the window's gyrocompass heading where it applies
+    (:func:`~..stages.reprocess.gyrocompass_plan`, with the configured noise), unless
+    ``coarse_reprocess`` is off or an external heading sets the coarse heading (then at the
+    window's end, from the coarse sigma).
     """
     cfg = dict(p.cfg)
     cfg['fine_filter'] = choose_filter(cfg, False)
@@ -331,6 +335,11 @@ def _new_stage(p):
     clock.t_first = clock.t_last = t0
     fine, _ = fine_stage_for(start, cfg, p.noise, False, known, heading is not None, clock,
                              None, copy.deepcopy(p.headings))
+    plan = reprocess.gyrocompass_plan(p.noise, lat, T) if replay and known else None
+    if plan is not None:                # the window's gyrocompass heading, then segments
+        var, rate_var, span = plan
+        fine.engine.gyrocompass_update(0.0, var)
+        fine.engine.gyro_segments = GyroSegments(rate_var, lat, span - T, skip=T)
     return fine, t0, t_end
 
 

@@ -190,9 +190,8 @@ def good_enough(window, noise, lat, duration):
     Issue 46. ``window``: the :meth:`CoarseWindow.arrays` so far; ``noise`` the configured
     sensor model (NoiseSpec); ``lat`` rad, known; ``duration`` s the full window
     (``coarse_duration``). The attitude's sigma is :func:`coarse_sigma`'s, with the white
-    noises the samples show where they are larger than the configured ones (the third
-    differences, :func:`~.noise_estimates.difference_density`, which smooth sway hardly
-    enters: a base shaken by knocks or an engine does not look confident). The window is
+    noises the samples show where they are larger than the configured ones
+    (:func:`seen_noise`). The window is
     good enough when waiting for the rest of it would narrow no axis's sigma by more
     than :data:`GOOD_ENOUGH` (relative): the fine filter would start from as good a point
     (it runs over these samples anyway, :mod:`.reprocess`). A navigation-grade heading and
@@ -205,12 +204,23 @@ def good_enough(window, noise, lat, duration):
     window hid the mounting from the sideslip check: 3.7 deg of roll under 0.7 deg).
     """
     tt, dth, dvv, dts = window
-    dt = float(np.median(dts))
     moving = coarse.detect_motion(dth, dvv, dts, noise.gyro_arw, noise.accel_vrw)[0]
-    seen = replace(noise,
+    return _close_to_full(seen_noise(window, noise), float(np.sum(dts)), duration, lat,
+                          moving)
+
+
+def seen_noise(window, noise):
+    """Return ``noise`` (NoiseSpec) with the white noises the window's samples show.
+
+    Each density is the larger of the configured one and the samples' third differences
+    (:func:`~.noise_estimates.difference_density`, which smooth sway hardly enters), so a
+    base shaken by knocks or an engine does not look confident.
+    """
+    tt, dth, dvv, dts = window
+    dt = float(np.median(dts))
+    return replace(noise,
                    gyro_arw=max(noise.gyro_arw, _density(difference_density(dth / dt, dt))),
                    accel_vrw=max(noise.accel_vrw, _density(difference_density(dvv / dt, dt))))
-    return _close_to_full(seen, float(np.sum(dts)), duration, lat, moving)
 
 
 def _close_to_full(noise, T, duration, lat, moving):

@@ -19,6 +19,8 @@ restarts from coarse with the reason.
 """
 from dataclasses import dataclass
 
+import numpy as np
+
 from ...models.stationary import unobservable_variance
 from . import coarse_stage, reprocess, self_check
 from ..inputs import motion
@@ -100,6 +102,7 @@ def hand_over(window, cfg, noise, clock, gnss, headings, install):
     heading_known = (check is None or check.heading_observable
                      or (aided and not check.at_rest) or heading_measured)
     replay = reprocess.applies(cfg, aided, heading_measured, headings)
+    C_window = res.C_b_n
     if replay:                      # the stage starts where the window began
         res = reprocess.start_of_window(res, window, noise, coarse_info['method'])
         clock.t_last = clock.t_first
@@ -109,6 +112,12 @@ def hand_over(window, cfg, noise, clock, gnss, headings, install):
     if check is not None:
         fine.mounting_doubt = check.mounting_doubt
     if replay:
+        if heading_known:
+            sigma = reprocess.window_heading(fine, C_window, window, noise, position[0],
+                                             coarse_info['method'],
+                                             coarse_info['motion_detected'])
+            if sigma is not None:
+                coarse_info['window_heading_sigma_deg'] = float(np.degrees(sigma))
         reason = reprocess.catch_up(fine, window, gnss)
         if reason is not None:
             return None, reason

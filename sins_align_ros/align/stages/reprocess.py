@@ -21,6 +21,26 @@ information the filter then takes from the window itself, and often nothing (its
 leaves). A test runs the same window with a prior ten times wider: the sigma at the
 window's end differs by the prior's share, a few per cent.
 
+**The window's heading is a measurement.** The still-base filter finds the heading from
+the tilt drift it causes (``phi_E' = -W cos L phi_U``), read through the accelerometers'
+noise: from 20 s of a navigation-grade IMU at 35 deg N that route gives about 22'
+(1 sigma), while the window's averaged gyros give the analytic coarse heading to
+``ARW / (W cos L sqrt(T))``, 3.7'. Issue 46 holds a still base to the analytic limit for
+the data seen, so the stage takes that heading as a measurement at the window's start
+(:func:`window_heading`: the filter's attitude there is the analytic one, so the
+innovation is zero and only the covariance changes; the biases the heading cannot be told
+from at rest are in the measurement row), and the live samples after the window in
+segments (:mod:`~..engines.gyrocompass`, which says why no sample is counted twice and
+for how long this is done: about 60 s of data at navigation grade, none at tactical).
+The variance is the white noise only, with the densities the samples show where they
+exceed the configured ones. Where we differ from seed 002: its fine filter starts from
+the coarse attitude and has no such measurement. It assumes a base that does not rotate
+beyond its gyro noise: a tilt creep the accelerometers cannot see, about 0.8 arcsec a
+minute for a navigation-grade gyro at 35 deg N, moves the heading by its 1 sigma over
+20 s; a window that shows motion (sway, knocks) takes the inertial-frame fit and gets no
+such measurement. test_reprocess holds the heading sigma above the analytic limit of all
+the data seen at every aligned row, and its error in sigmas to a chi-square bound.
+
 **What is published is causal.** The rows of the reprocessed samples are not published
 again (they went out as ``coarse`` when the samples came); the stage's first published row
 is the window's last sample, and a stage that reached ``aligned`` inside the window is
@@ -36,8 +56,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from ...nav import coarse
-from .coarse_stage import coarse_sigma
+from ...nav import coarse, earth
+from ..engines import gyrocompass
+from ..inputs.heading import LINEAR_MAX, yaw_of
+from .coarse_stage import coarse_sigma, seen_noise
 
 #: the prior claims the white-noise information of this share of the window, at 3 sigma
 PRIOR_SHARE = 0.1
@@ -82,6 +104,56 @@ def start_of_window(res, window, noise, method):
     moving = bool(res.info.get('motion_detected', False))
     return replace(res, C_b_n=C,
                    sigma=prior_sigma(noise, float(np.sum(dts)), lat, moving, res.sigma))
+
+
+def gyrocompass_plan(noise, lat, T, moving=False):
+    """Return ``(var, rate_var, span)`` of a window's gyrocompass heading, or None.
+
+    ``noise``: the sensor model with the densities the samples show
+    (:func:`~.coarse_stage.seen_noise`); ``lat`` rad; ``T`` s the window; ``moving``: it
+    showed motion. ``var`` rad^2: the heading's white-noise variance
+    (:func:`~..engines.gyrocompass.heading_variance_rate` over ``T``); ``span`` s: the
+    data over which such headings may be taken (:func:`~..engines.gyrocompass.gyro_span`).
+    None: a window that moved (a turning base's averaged gyros are no heading), a gyro that
+    cannot see Earth rate, a window longer than the span (the filter's own route to the
+    heading is the better one there: tactical grade), or a heading beyond the linear model
+    (:data:`~..inputs.heading.LINEAR_MAX`).
+    """
+    wc = earth.OMEGA_IE * np.cos(lat)
+    if moving or noise.gyro_bias > 0.5 * wc:
+        return None
+    rate_var = gyrocompass.heading_variance_rate(noise, lat)
+    span = gyrocompass.gyro_span(noise, lat)
+    var = rate_var / T
+    if var > LINEAR_MAX ** 2 or T > span:
+        return None
+    return var, rate_var, span
+
+
+def window_heading(fine, C_b_n, window, noise, lat, method, moving):
+    """Give a still-base stage the window's gyrocompass heading and live segments.
+
+    ``fine``: the stage at the window's start; ``C_b_n`` (3, 3): the analytic coarse
+    attitude of the window (the gyros and accelerometers averaged, ``method`` the coarse
+    method that ran, ``moving`` its window showed motion); ``noise`` the sensor model,
+    ``lat`` rad. The heading is one measurement
+    (:meth:`~..engines.stationary.StationaryEngine.gyrocompass_update`, the biases in its
+    row), its variance from :func:`gyrocompass_plan` with the noises the samples show
+    where they exceed the configured ones (:func:`~.coarse_stage.seen_noise`). The live
+    samples after the window (``skip`` the window's samples, which :func:`catch_up` runs
+    next) give more such headings in segments
+    (:class:`~..engines.gyrocompass.GyroSegments`). Returns the heading's 1-sigma (rad),
+    or None (nothing done: an inertial-frame fit, or :func:`gyrocompass_plan` says no).
+    """
+    T = float(np.sum(window[3]))
+    plan = None if method != 'analytic' else gyrocompass_plan(
+        seen_noise(window, noise), lat, T, moving)
+    if plan is None:
+        return None
+    var, rate_var, span = plan
+    fine.engine.gyrocompass_update(yaw_of(C_b_n), var)
+    fine.engine.gyro_segments = gyrocompass.GyroSegments(rate_var, lat, span - T, skip=T)
+    return float(np.sqrt(var))
 
 
 def catch_up(fine, window, gnss):
