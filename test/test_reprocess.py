@@ -122,8 +122,8 @@ def test_the_gyrocompass_row_leaves_the_biases_in_the_heading(model):
     eng = StationaryEngine(StationaryModel(model), noise, C, np.radians([0.5, 0.5, 5.0]),
                            (lat, 0.0, 0.0), 0.01, 1.0)
     var = (2.0 / 60.0 * DEG) ** 2
-    y, s = eng.gyrocompass_update(float(np.arctan2(C[1, 0], C[0, 0])), var)
-    assert y == pytest.approx(0.0, abs=1e-12)
+    y, s, used = eng.gyrocompass_update(float(np.arctan2(C[1, 0], C[0, 0])), var)
+    assert used and y == pytest.approx(0.0, abs=1e-12)
     wc = earth.OMEGA_IE * np.cos(lat)
     g = earth.gravity(lat, 0.0)
     if model == 'reduced7':
@@ -135,3 +135,23 @@ def test_the_gyrocompass_row_leaves_the_biases_in_the_heading(model):
         expected = var + (noise.gyro_bias / wc) ** 2 + np.tan(lat) ** 2 * ca / g ** 2
     k = eng.model.i_phi[2]
     assert eng.P[k, k] == pytest.approx(expected, rel=0.02)
+
+
+def test_a_gyrocompass_heading_far_from_the_filters_is_dropped():
+    """A live segment whose heading is beyond the engine's gate (a base that turned
+    without the rest watch seeing it) leaves the filter as it was; one inside is used."""
+    from sins_align_ros.align.engines.stationary import StationaryEngine
+    from sins_align_ros.models.stationary import NoiseSpec, StationaryModel
+    noise = NoiseSpec(gyro_bias=0.01 * DEG / 3600.0, gyro_arw=1e-7, accel_bias=1e-3,
+                      accel_vrw=1e-4)
+    C = euler_to_dcm(np.radians([0.0, 0.0, 30.0]))
+    eng = StationaryEngine(StationaryModel('stationary12'), noise, C,
+                           np.radians([0.01, 0.01, 0.1]), (0.6, 0.0, 0.0), 0.01, 1.0)
+    P0 = eng.P.copy()
+    sigma = float(np.sqrt(eng.P[5, 5] + (2.0 / 60.0 * DEG) ** 2))
+    far = np.radians(30.0) + 10.0 * sigma
+    y, s, used = eng.gyrocompass_update(far, (2.0 / 60.0 * DEG) ** 2, max_nis=eng.gyro_gate)
+    assert not used and np.array_equal(eng.P, P0) and s > 0.0
+    near = np.radians(30.0) + 1.0 * sigma
+    assert eng.gyrocompass_update(near, (2.0 / 60.0 * DEG) ** 2, max_nis=eng.gyro_gate)[2]
+    assert eng.P[5, 5] < P0[5, 5]

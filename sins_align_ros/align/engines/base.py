@@ -121,11 +121,13 @@ class StillEngine(Engine, Protocol):
     def restage(self) -> None:
         """Re-initialise the filter from the corrected attitude (seed 002 sec. 4)."""
 
-    def gyrocompass_update(self, yaw: float, var: float) -> Tuple[float, float]:
+    def gyrocompass_update(self, yaw: float, var: float,
+                           max_nis: Optional[float] = None) -> Tuple[float, float, bool]:
         """Update with a still base's gyrocompass ``yaw`` (rad, white-noise ``var`` rad^2).
 
         Its measurement row carries the biases the heading cannot be told from at rest.
-        Returns the innovation (rad) and its predicted 1-sigma.
+        Returns the innovation (rad), its predicted 1-sigma and whether it was used (not
+        above ``max_nis``).
         """
 
 

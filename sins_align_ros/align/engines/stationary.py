@@ -138,8 +138,10 @@ class StationaryEngine(StillCoast):
         #: back (a rollback when the base is found moving), the start first
         self._recent = deque([(self.P, np.zeros(3), np.zeros(3))],
                              maxlen=int(np.ceil(ROLLBACK_S / self.period)) + 1)
-        #: live gyrocompass segments (:class:`~.gyrocompass.GyroSegments`) or None
+        #: live gyrocompass segments (:class:`~.gyrocompass.GyroSegments`) or None, and
+        #: the NIS above which a segment's heading is dropped (a rest-watch false alarm's)
         self.gyro_segments = None
+        self.gyro_gate = chi2_quantile(1.0 - P_FALSE, 1)
 
     # -- stepping --------------------------------------------------------------------------
     def run_block(self, t, dtheta, dv, i, t_last):
@@ -218,7 +220,8 @@ class StationaryEngine(StillCoast):
         """Take a full live gyrocompass segment's heading (:mod:`.gyrocompass`), if one is due.
 
         Its correction is added to :attr:`last_correction` (the settle test sums what each
-        epoch changed).
+        epoch changed). A heading beyond :attr:`gyro_gate` from the filter's (a base that
+        turned in a way the rest watch did not see) is dropped, not taken.
         """
         seg = self.gyro_segments
         if seg is None:
@@ -226,9 +229,11 @@ class StationaryEngine(StillCoast):
         fix = seg.take()
         if fix is not None:
             C0 = self.mech.C_b_n
-            self.gyrocompass_update(*fix)
-            self.last_correction = (self.last_correction
-                                    + dcm_to_rotvec(self.mech.C_b_n @ C0.T))
+            if self.gyrocompass_update(*fix, max_nis=self.gyro_gate)[2]:
+                self.last_correction = (self.last_correction
+                                        + dcm_to_rotvec(self.mech.C_b_n @ C0.T))
+            else:
+                seg.n_taken, seg.n_dropped = seg.n_taken - 1, seg.n_dropped + 1
         if seg.done:
             self.gyro_segments = None
 
@@ -275,8 +280,8 @@ class StationaryEngine(StillCoast):
         self.heading_measured()
         return result
 
-    def gyrocompass_update(self, yaw, var):
-        """Update with the heading ``yaw`` (rad) the window's averaged gyros give; (y, sigma).
+    def gyrocompass_update(self, yaw, var, max_nis=None):
+        """Update with the heading ``yaw`` (rad) the averaged gyros give; (y, sigma, used).
 
         ``var`` (rad^2): that heading's white-noise variance. The analytic (gyrocompass)
         attitude of a still base is the one at which this model sees no drift, so it
@@ -287,7 +292,8 @@ class StationaryEngine(StillCoast):
         the analytic attitude's own error, so ``yaw_a = yaw(C~) + h (phi - M b) + noise``
         with ``h`` the yaw row (:func:`~..inputs.heading.yaw_row`). The update narrows the
         heading along what the gyros saw and leaves the heading's :attr:`bound` (the
-        biases) as it was. Returns the innovation (rad) and its predicted 1-sigma.
+        biases) as it was. Returns the innovation (rad), its predicted 1-sigma and whether
+        it was used (not when its NIS exceeds ``max_nis``; None: no gate).
         """
         m = self.model
         C = self.mech.C_b_n
@@ -303,12 +309,14 @@ class StationaryEngine(StillCoast):
         y = wrap(yaw - yaw_of(C) - float(H @ self.x))
         PHt = self.P @ H
         S = float(H @ PHt) + var
+        if max_nis is not None and y * y / S > max_nis:
+            return y, float(np.sqrt(S)), False
         K = PHt / S
         A = np.eye(m.n) - np.outer(K, H)
         P = A @ self.P @ A.T + var * np.outer(K, K)
         self.x, self.P = self.x + K * y, 0.5 * (P + P.T)
         self._feed_back()
-        return y, float(np.sqrt(S))
+        return y, float(np.sqrt(S)), True
 
     def heading_measured(self):
         """Drop the heading's :attr:`bound`: an external heading, not the gyro bias, sets it."""
