@@ -9,9 +9,9 @@ that ends the window (:mod:`sins_align_ros.align.stages.reprocess`). The publish
 listener are those of ``bench/node_load.py`` (three processes, local discovery, their own
 ``ROS_DOMAIN_ID``). Measured: the IMU messages published and the ``imu/data`` messages the
 listener got (the node publishes one per input sample, so equal counts mean no input was
-dropped); the longest gap between two outputs and when it fell; the catch-up time, from
-the window's last sample's due time to the first output after it whose latency is back
-under 20 ms; the worst latency.
+dropped; a gap in the received stamps says where one was); the longest gap between two
+outputs and when it fell; the catch-up time, from the window's last sample's due time to
+the first output after it whose latency is back under 20 ms; the worst latency.
 
 Usage: python bench/node_catch_up.py [--rate 1000] [--window 60] [--seconds 80] [--out FILE]
 """
@@ -82,11 +82,13 @@ def run(args, folder):
     k = int(np.argmax(gaps))
     t_end = t_first + args.window                     # the window's last sample is due
     after = np.flatnonzero((rows[:, 1] >= t_end) & (lat < CAUGHT_UP_MS))
+    holes = np.flatnonzero(np.diff(rows[:, 1]) > 1.5 / args.rate)
+    missing = ', '.join(f'{rows[h, 1] - t_first:.3f}' for h in holes[:5]) or '-'
     caught = rows[after[0], 0] - t_end if len(after) else float('nan')
     return {'published': int(args.seconds * args.rate), 'received': len(rows),
             'gap_s': float(gaps[k]), 'gap_at_s': float(rows[k, 1] - t_first),
             'catch_up_s': float(caught), 'max_latency_ms': float(lat.max()),
-            'p50_ms': float(np.percentile(lat, 50))}
+            'p50_ms': float(np.percentile(lat, 50)), 'missing_after': missing}
 
 
 def main(argv=None):
@@ -105,11 +107,12 @@ def main(argv=None):
         f'Command: `python bench/node_catch_up.py --rate {args.rate:g} --window '
         f'{args.window:g} --seconds {args.seconds:g}` on {machine_summary()}.', '',
         __doc__.split('\n\n', 1)[1].split('\n\nUsage')[0].replace('\n', ' '), '',
-        '| IMU published | imu/data received | longest output gap (s) | at (s of data) | '
-        'catch-up (s) | worst latency (ms) | median latency (ms) |',
-        '|---|---|---|---|---|---|---|',
-        f"| {r['published']} | {r['received']} | {r['gap_s']:.3f} | {r['gap_at_s']:.1f} | "
-        f"{r['catch_up_s']:.3f} | {r['max_latency_ms']:.0f} | {r['p50_ms']:.1f} |", '']
+        '| IMU published | imu/data received | missing after (s of data) | longest output gap '
+        '(s) | at (s of data) | catch-up (s) | worst latency (ms) | median latency (ms) |',
+        '|---|---|---|---|---|---|---|---|',
+        f"| {r['published']} | {r['received']} | {r['missing_after']} | {r['gap_s']:.3f} | "
+        f"{r['gap_at_s']:.1f} | {r['catch_up_s']:.3f} | {r['max_latency_ms']:.0f} | "
+        f"{r['p50_ms']:.1f} |", '']
     write_markdown(args.out, lines)
     print('\n'.join(lines))
     return 0

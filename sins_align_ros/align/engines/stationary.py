@@ -150,14 +150,20 @@ class StationaryEngine(StillCoast):
         Returns ``(j, C (j - i, 3, 3), epoch)``: the end index, the attitudes after each
         sample (the last one corrected when the epoch ran) and whether it ran.
         """
-        j, n = i, len(t)
-        acc = self.since_update
-        while j < n:
-            acc += t[j] - (t_last if j == i else t[j - 1])
-            j += 1
-            if acc >= self.period - _EPS_T:
+        n = len(t)
+        # the epoch's sample: the accumulated time (summed in order, as one sample at a time
+        # would) reaches the period; looked for among the samples up to the stamp where it
+        # falls, a few more, then all (a clock that runs slow)
+        need = self.period - _EPS_T
+        k = int(np.searchsorted(t, t_last + need - self.since_update, side='right')) + 2
+        for end in (min(max(k, i + 1), n), n):
+            dts = np.diff(np.concatenate([[t_last], t[i:end]]))
+            acc = np.cumsum(np.concatenate([[self.since_update], dts]))[1:]
+            hit = np.flatnonzero(acc >= need)
+            if len(hit) or end == n:
                 break
-        dts = np.diff(np.concatenate([[t_last], t[i:j]]))
+        j = i + (int(hit[0]) + 1 if len(hit) else len(dts))
+        dts, acc = dts[:j - i], float(acc[j - i - 1]) if j > i else self.since_update
         C = self.mech.run(dtheta[i:j], dv[i:j], dts)['C_b_n']
         if self.gyro_segments is not None:
             self.gyro_segments.add(dtheta[i:j], dv[i:j], dts)

@@ -39,8 +39,8 @@ finding (:meth:`~.fine_stage.FineStage._ready_reason`).
 
 Not from the seeds (they report convergence curves, not a phase).
 """
+import bisect
 import math
-from collections import deque
 
 import numpy as np
 
@@ -71,21 +71,33 @@ class SettleTest:
         self.t0 = float(t0)
         self.span_s = float(span_s)
         self.sigmas = float(sigmas)
-        self._corr = deque()
+        # the stamps of the corrections and their running sums (3,) rad, and the sum of
+        # those already forgotten: a span's net is a difference of two running sums
+        self._t = []
+        self._sums = []
+        self._forgotten = np.zeros(3)
 
     def add(self, t, phi):
         """Record the correction ``phi`` (3,) rad an update applied at ``t``."""
-        self._corr.append((float(t), np.asarray(phi, dtype=float)))
+        last = self._sums[-1] if self._sums else self._forgotten
+        self._t.append(float(t))
+        self._sums.append(last + np.asarray(phi, dtype=float))
+
+    def _sum_to(self, t):
+        k = bisect.bisect_right(self._t, t)
+        return self._sums[k - 1] if k else self._forgotten
 
     def net(self, t):
         """Return the corrections (3,) rad of the :attr:`span_s` s up to ``t``, summed.
 
-        (Stamps rise: corrections older than two spans before ``t`` are forgotten.)
+        (Stamps rise: corrections older than two spans before ``t`` are forgotten, in
+        batches, their sum kept.)
         """
-        c = self._corr
-        while c and c[0][0] <= t - 2.0 * self.span_s:
-            c.popleft()
-        return sum((p for s, p in c if t - self.span_s < s <= t), np.zeros(3))
+        k = bisect.bisect_right(self._t, t - 2.0 * self.span_s)
+        if k > 256:
+            self._forgotten = self._sums[k - 1]
+            del self._t[:k], self._sums[:k]
+        return self._sum_to(t) - self._sum_to(t - self.span_s)
 
     def settled(self, t, sigma):
         """Tell whether the estimate has settled by ``t``; ``sigma`` (3,) the published 1-sigma.
