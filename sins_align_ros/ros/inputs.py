@@ -1,7 +1,8 @@
 """The alignment node's input: subscriptions with their QoS, messages into session calls.
 
-* ``imu/data_raw`` (sensor_msgs/Imu): best effort with a deep queue, so that it takes both
-  best-effort and reliable publishers; taken as serialized bytes (``raw=True``) and
+* ``imu/data_raw`` (sensor_msgs/Imu): best effort with a deep queue (:data:`IMU_QOS`), so
+  that it takes both best-effort and reliable publishers; taken as serialized bytes
+  (``raw=True``) and
   decoded by the batch (:mod:`.imu_wire`). The node queues the messages and hands a batch
   to :func:`feed_imu` after ``imu_batch_period`` of waiting (at 1 kHz ten samples go
   through the input checks and the compiled filters at once, which took the node from
@@ -28,7 +29,10 @@ from ..nav.frames import quat_to_yaw
 from .conversions import stamp_to_sec
 from .imu_wire import ImuRows
 
-IMU_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.BEST_EFFORT,
+#: 5 s of a 1 kHz IMU: the callback that ends a still base's coarse window runs the fine
+#: filter over the stored window (0.7 s for 60 s at 1 kHz on the node,
+#: bench/results/node_catch_up.md), and no sample may be dropped meanwhile
+IMU_QOS = QoSProfile(depth=5000, reliability=ReliabilityPolicy.BEST_EFFORT,
                      history=HistoryPolicy.KEEP_LAST)
 GNSS_QOS = QoSProfile(depth=50, reliability=ReliabilityPolicy.BEST_EFFORT,
                       history=HistoryPolicy.KEEP_LAST)
