@@ -128,8 +128,9 @@ def fog_rows():
                               + 0.3))
         first = f'{t[al][0]:.1f}' if al.any() else '-'
         inside = f'{100 * np.mean(ins):.0f}%' if ins else '-'
+        sig = np.degrees(np.sqrt(np.diag(out.P_phi[-1])))
         rows.append(f'| fog_mems | {name} | {first} | {int(np.sum(al[:-1] & ~al[1:]))} | '
-                    f'{ph[-1]} | {inside} |')
+                    f'{ph[-1]} | {sig[0]:.2f} / {sig[1]:.2f} / {sig[2]:.2f} | {inside} |')
     return rows
 
 
@@ -195,11 +196,12 @@ def main():
         '|---|---|---|---|---|---|---|---|---|---|---|', *rows, '',
         '## The fog_mems car (real MEMS IMU, 100 s, ../shared/data)', '',
         'The recording as bench/defaults.py runs it (GNSS-like position and velocity from the '
-        'FOG reference). "aligned at": s from the first IMU sample; "switches": `aligned` -> '
-        '`fine`; "inside": the 1-Hz `aligned` samples inside 3 sigma + 0.3 deg (mounting) on '
-        'every axis against the reference.', '',
-        '| recording | parameters | aligned at (s) | switches | final phase | inside |',
-        '|---|---|---|---|---|---|', *fog_rows(), '']
+        'FOG reference). "aligned at": s from the first IMU sample (- never); "switches": '
+        '`aligned` -> `fine`; "inside": the 1-Hz `aligned` samples inside 3 sigma + 0.3 deg '
+        '(mounting) on every axis against the reference.', '',
+        '| recording | parameters | aligned at (s) | switches | final phase | final 1-sigma '
+        'E/N/U (deg) | inside |',
+        '|---|---|---|---|---|---|---|', *fog_rows(), '']
     with open(args.out, 'w') as f:
         f.write('\n'.join(page))
     print('\n'.join(page))
