@@ -155,3 +155,43 @@ def test_a_gyrocompass_heading_far_from_the_filters_is_dropped():
     near = np.radians(30.0) + 1.0 * sigma
     assert eng.gyrocompass_update(near, (2.0 / 60.0 * DEG) ** 2, max_nis=eng.gyro_gate)[2]
     assert eng.P[5, 5] < P0[5, 5]
+
+
+def test_a_long_window_is_caught_up_over_several_calls_and_ends_where_one_call_ends():
+    """A 30-s window at 1 kHz (30 000 samples, more than CATCH_UP_SAMPLES) fed as a live
+    node feeds it, 10 samples a call: the call that ends the window runs over at most
+    CATCH_UP_SAMPLES stored samples, the pipeline says coarse and catching_up, its rows are
+    coarse with an unknown attitude; the next call runs over the rest of the window and the
+    queued samples, publishes the current estimate in its last row, and from then on its
+    attitudes, phases and final filter state are those of the same data given in one call,
+    to round-off (the same samples in the same order through the same filter)."""
+    sc = scenario('static_navigation')
+    sc.trajectory.lat_deg = 35.0
+    b = ScenarioStream(sc, seed=4, imu_rate_hz=1000.0).next_block(32000).imu
+    cfg = {**alignment_params(sc, 'auto'), 'coarse_min_duration': 30.0,
+           'coarse_duration': 30.0}
+    whole = AlignmentPipeline(cfg)
+    whole.start_clock(0.0)
+    ref = whole.process(b.t, b.dtheta, b.dv)
+    live = AlignmentPipeline(cfg)
+    live.start_clock(0.0)
+    rows, seen = [], []
+    for k in range(0, 32000, 10):
+        out = live.process(b.t[k:k + 10], b.dtheta[k:k + 10], b.dv[k:k + 10])
+        rows.append(out)
+        seen.append((live.catch_up is not None, live.phase, live.status()['catching_up']))
+    catching = [k for k, s in enumerate(seen) if s[0]]
+    assert catching == [2999]                                  # the window's last call
+    assert all(s[1] == COARSE and s[2] for s in (seen[k] for k in catching))
+    assert all(np.all(np.isnan(rows[k].q)) for k in catching)
+    first = catching[-1] + 1
+    assert not np.isnan(rows[first].q[-1]).any()
+    done = slice((first + 1) * 10, 32000)
+    q = np.concatenate([r.q for r in rows[first + 1:]])
+    np.testing.assert_allclose(q, ref.q[done], atol=1e-12)
+    assert list(np.concatenate([r.phase for r in rows[first + 1:]])) == list(ref.phase[done])
+    # (the rows' sigma between epochs is drawn differently for 10-sample calls and one call,
+    # as without a catch-up; the filter's state is the same)
+    np.testing.assert_allclose(live.fine.engine.P, whole.fine.engine.P, rtol=1e-12,
+                               atol=1e-30)
+    np.testing.assert_allclose(live.fine.mech.C_b_n, whole.fine.mech.C_b_n, atol=1e-14)

@@ -34,6 +34,7 @@ from .engines.factory import is_aided, noise_spec
 from .stages.fine_stage import ALIGNED, FINE, Clock
 from .inputs.gnss_buffer import GnssBuffer
 from .stages.handover import fine_stage_for, hand_over
+from .stages.reprocess import CATCH_UP_SAMPLES
 from .inputs.heading import HeadingBuffer
 from .inputs.installation import Installation
 from .output import Output, Rows, assemble, unknown
@@ -90,6 +91,8 @@ class AlignmentPipeline:
         #: when coarse alignment ends
         self.aided = is_aided(self.cfg['fine_filter'])
         self.fine = None
+        #: a reprocessing stage's stored samples still to run over (:mod:`.reprocess`)
+        self.catch_up = None
         self.position_source = None
         self.position = None
         self.warnings = []
@@ -114,20 +117,22 @@ class AlignmentPipeline:
     @property
     def phase(self):
         """One of :data:`PHASES`."""
-        if self.fine is not None:
+        if self.fine is not None and self.catch_up is None:
             return self.fine.phase
         return WAITING if self.clock.t_first is None else COARSE
 
     @property
     def t_last(self):
-        """Stamp of the last processed sample (s), or None."""
+        """Stamp of the last processed sample (s), or None (queued ones while catching up)."""
+        if self.catch_up is not None:
+            return self.catch_up.t_last
         return self.clock.t_last
 
     @property
     def elapsed(self):
         """Seconds of IMU data since the first sample."""
         c = self.clock
-        return 0.0 if c.t_first is None else c.t_last - c.t_first
+        return 0.0 if c.t_first is None else self.t_last - c.t_first
 
     @property
     def engine(self):
@@ -298,12 +303,26 @@ class AlignmentPipeline:
                 out = unknown(t[i:j], COARSE)
                 if w.full:
                     self._finish_coarse()
-                    if self.fine is not None and j > i:   # else degenerate: coarse again
+                    if self.catch_up is not None:
+                        self._catch_up(max(CATCH_UP_SAMPLES, 2 * n))
+                    if self.fine is not None and self.catch_up is None and j > i:
                         out.phase[-1] = self.fine.phase   # aligned after a reprocessing
                         self._fill_last(out)
                 outs.append(out)
                 i = j
                 continue
+            if self.catch_up is not None:   # still behind: these samples wait in its queue
+                self.catch_up.add(t[i:], dtheta[i:], dv[i:])
+                self._catch_up(max(CATCH_UP_SAMPLES, 2 * n))
+                if self.catch_up is not None or self.fine is None:
+                    outs.append(unknown(t[i:], COARSE))
+                    break
+                # caught up with these samples too: publish the last one's estimate
+                out = unknown(t[i:], COARSE)
+                out.phase[-1] = self.fine.phase
+                self._fill_last(out)
+                outs.append(out)
+                break
             if n == 1:                      # the live node's path: scalar arithmetic
                 out, reason = self.fine.step(t[0], dtheta[0], dv[0], self.gnss)
                 if reason is not None:
@@ -355,6 +374,7 @@ class AlignmentPipeline:
 
     def _finish_coarse(self):
         window = self.window.arrays(self.clock.t_first)
+        t_end = self.clock.t_last
         self.window = coarse_stage.CoarseWindow(self.cfg['coarse_duration'])
         start, reason = hand_over(window, self.cfg, self.noise, self.clock, self.gnss,
                                   self.headings, self.install)
@@ -367,11 +387,20 @@ class AlignmentPipeline:
         self.heading_measured = start.heading_measured
         self.warnings.extend(start.warnings)
         self.fine = start.fine
+        self.catch_up = start.catch_up
         self.install = start.install
         # fixes that came in during coarse alignment are history, not measurements; those
         # stamped after its last sample are the aided filter's
-        self.gnss.drop_pending(self.clock.t_last if self.aided else math.inf)
-        self.headings.drop_pending(self.clock.t_last)
+        self.gnss.drop_pending(t_end if self.aided else math.inf)
+        self.headings.drop_pending(t_end)
+
+    def _catch_up(self, budget):
+        """Run the reprocessing stage over at most ``budget`` queued samples (reprocess)."""
+        done, reason = self.catch_up.run(self.fine, self.gnss, budget)
+        if done:
+            self.catch_up = None
+        if reason is not None:
+            self._diverged(reason)
 
     def _fill_last(self, out):
         """Put the coarse result into the last row of a coarse block."""

@@ -18,10 +18,14 @@ OUTAGE_WARN_S = 5.0
 
 def pipeline_status(p):
     """Key figures of pipeline ``p`` for diagnostics (plain Python types)."""
-    fine = p.fine
+    # a stage still catching up with the stored samples has no current estimate yet
+    fine = p.fine if p.catch_up is None else None
     s = {'phase': p.phase, 'elapsed_s': p.elapsed, 'fine_filter': p.cfg['fine_filter'],
          'position_source': p.position_source or 'none',
-         'stage': 0 if fine is None else fine.stage, 'filter_updates': 0}
+         'stage': 0 if fine is None else fine.stage, 'filter_updates': 0,
+         'catching_up': p.catch_up is not None}
+    if p.catch_up is not None:
+        s['catch_up_left_s'] = p.catch_up.left_s
     if p.position is not None:
         s['latitude_deg'] = p.position[0] / DEG
     if fine is not None:

@@ -11,8 +11,8 @@ what runs next, without changing the pipeline:
 4. the coarse attitude (:mod:`.coarse_stage`), its heading replaced by a recent external
    one (:mod:`.heading`);
 5. the engine and the fine stage (:mod:`.factory`, :mod:`.fine_stage`);
-6. a still-base stage starts at the window's first sample and runs over its samples
-   (:mod:`.reprocess`).
+6. a still-base stage starts at the window's first sample, to run over its samples
+   (:mod:`.reprocess`; the pipeline runs the :class:`~.reprocess.CatchUp`).
 
 :class:`~.pipeline.AlignmentPipeline` applies the :class:`FineStart` it returns, or
 restarts from coarse with the reason.
@@ -40,7 +40,9 @@ class FineStart:
     the coarse stage's diagnostics; ``heading_measured``: an external heading set the
     coarse heading; ``warnings``: what the user should be told; ``fine``: the running
     :class:`~.fine_stage.FineStage`; ``install``: the
-    :class:`~.installation.Installation`, its lever arm the self-check's where it found one.
+    :class:`~.installation.Installation`, its lever arm the self-check's where it found one;
+    ``catch_up``: the :class:`~.reprocess.CatchUp` of a stage that starts at the window's
+    first sample (it has yet to run over the window), or None.
     """
 
     cfg: dict
@@ -54,6 +56,7 @@ class FineStart:
     warnings: list
     fine: FineStage
     install: object
+    catch_up: object = None
 
 
 def hand_over(window, cfg, noise, clock, gnss, headings, install):
@@ -61,8 +64,9 @@ def hand_over(window, cfg, noise, clock, gnss, headings, install):
 
     ``window``: the coarse window's arrays (``CoarseWindow.arrays``); ``cfg`` and
     ``noise``: the parameters and sensor model as configured (not changed here);
-    ``clock``: the pipeline's :class:`~.fine_stage.Clock` (at the window's end, where a
-    reprocessing stage leaves it too);
+    ``clock``: the pipeline's :class:`~.fine_stage.Clock` (at the window's end; a
+    reprocessing stage moves it to the window's start, its :class:`~.reprocess.CatchUp`
+    back to the end);
     ``gnss``, ``headings``, ``install``: the pipeline's GNSS history, external headings
     and installation (read only).
     """
@@ -118,12 +122,10 @@ def hand_over(window, cfg, noise, clock, gnss, headings, install):
                                              coarse_info['motion_detected'])
             if sigma is not None:
                 coarse_info['window_heading_sigma_deg'] = float(np.degrees(sigma))
-        reason = reprocess.catch_up(fine, window, gnss)
-        if reason is not None:
-            return None, reason
         coarse_info['reprocessed_s'] = float(window[0][-1] - window[0][0] + window[3][0])
     return FineStart(cfg, noise, aided, position, position_source, check, coarse_info,
-                     heading_measured, warnings, fine, install), None
+                     heading_measured, warnings, fine, install,
+                     reprocess.CatchUp(window) if replay else None), None
 
 
 def fine_stage_for(start, cfg, noise, with_velocity, heading_known, heading_measured, clock,

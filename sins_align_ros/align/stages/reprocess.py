@@ -46,6 +46,14 @@ again (they went out as ``coarse`` when the samples came); the stage's first pub
 is the window's last sample, and a stage that reached ``aligned`` inside the window is
 taken as aligned from that row (:attr:`~.fine_stage.FineStage.t_aligned`).
 
+**A long window is caught up over several calls** (:class:`CatchUp`): at most
+:data:`CATCH_UP_SAMPLES` stored samples a call, so a live node at 1 kHz is not held for
+the whole window (0.7-0.9 s for 60 s, before). The samples that come meanwhile are queued
+behind the window and published as ``coarse`` with an unknown attitude (as the window's
+were); the pipeline says ``coarse`` and its status ``catching_up``. Once the queue is run
+over, the stage's rows are the live ones again. A call that brings more samples than the
+window (a replay's block) catches up at once, as before.
+
 Where it applies (:func:`applies`): a still-base filter (the seed 002 family) with no
 external heading in play (an external heading set the coarse heading from a message the
 window also holds; applying it again as a measurement would count it twice). The
@@ -140,7 +148,7 @@ def window_heading(fine, C_b_n, window, noise, lat, method, moving):
     (:meth:`~..engines.stationary.StationaryEngine.gyrocompass_update`, the biases in its
     row), its variance from :func:`gyrocompass_plan` with the noises the samples show
     where they exceed the configured ones (:func:`~.coarse_stage.seen_noise`). The live
-    samples after the window (``skip`` the window's samples, which :func:`catch_up` runs
+    samples after the window (``skip`` the window's samples, which :class:`CatchUp` runs
     next) give more such headings in segments
     (:class:`~..engines.gyrocompass.GyroSegments`). Returns the heading's 1-sigma (rad),
     or None (nothing done: an inertial-frame fit, or :func:`gyrocompass_plan` says no).
@@ -156,20 +164,61 @@ def window_heading(fine, C_b_n, window, noise, lat, method, moving):
     return float(np.sqrt(var))
 
 
-def catch_up(fine, window, gnss):
-    """Run the fine stage over the window's samples; return the reason it diverged, or None.
+#: most stored samples the stage runs over in one call of the pipeline (unless the call
+#: itself brings more): 20 s of a 1 kHz IMU, about 0.13 s of work (0.38 s for 60 s in
+#: process, bench/results/node_catch_up.md), so a live node's IMU callback is never held
+#: longer; no window at 100 Hz or below is split
+CATCH_UP_SAMPLES = 20000
 
-    ``fine``: the stage, its clock at the window's start; ``gnss``: the pipeline's
-    :class:`~..inputs.gnss_buffer.GnssBuffer` (the rest watch reads its last fix). The
-    rows are dropped (module docstring); an ``aligned`` reached inside the window counts
-    from its last sample.
+
+class CatchUp:
+    """The stored samples a reprocessing stage has still to run over (module docstring).
+
+    ``window``: the coarse window's arrays; the live samples that come while it catches up
+    are appended (:meth:`add`) and published as ``coarse``, unknown attitude, as the
+    window's own were: the stage's estimate is not the current one until it has caught up.
     """
-    tt, dth, dvv, _ = window
-    i = 0
-    while i < len(tt):
-        _, i, reason = fine.run(tt, dth, dvv, i, gnss)
-        if reason is not None:
-            return reason
-    if fine.t_aligned is not None:
-        fine.t_aligned = float(tt[-1])
-    return None
+
+    def __init__(self, window):
+        tt, dth, dvv, _ = window
+        self._parts = [(tt, dth, dvv)]
+        self.i = 0
+
+    def add(self, t, dtheta, dv):
+        """Queue live samples ``t`` (N,), ``dtheta``, ``dv`` (N, 3) behind the stored ones."""
+        if len(t):
+            self._parts.append((t, dtheta, dv))
+
+    @property
+    def t_last(self):
+        """Stamp of the last queued sample (s)."""
+        return float(self._parts[-1][0][-1])
+
+    @property
+    def left_s(self):
+        """Seconds of queued samples not yet run over."""
+        t = self._parts[-1][0]
+        first = self._parts[0][0]
+        return float(t[-1] - first[min(self.i, len(first) - 1)])
+
+    def run(self, fine, gnss, budget=CATCH_UP_SAMPLES):
+        """Run ``fine`` over at most ``budget`` queued samples: ``(done, diverged reason)``.
+
+        ``gnss``: the pipeline's GNSS history (the rest watch reads its last fix). Rows are
+        dropped; a stage that reached ``aligned`` while catching up counts from the last
+        sample run over when it has caught up (the first row it publishes).
+        """
+        if len(self._parts) > 1:                # one queue: stored then live samples
+            tt, dth, dvv = (np.concatenate(a) for a in zip(*self._parts))
+            self._parts = [(tt, dth, dvv)]
+        tt, dth, dvv = self._parts[0]
+        end = min(len(tt), self.i + int(budget))
+        while self.i < end:
+            _, j, reason = fine.run(tt[:end], dth[:end], dvv[:end], self.i, gnss)
+            self.i = j
+            if reason is not None:
+                return True, reason
+        done = self.i >= len(tt)
+        if done and fine.t_aligned is not None:
+            fine.t_aligned = max(fine.t_aligned, float(tt[-1]))
+        return done, None
