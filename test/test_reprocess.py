@@ -157,9 +157,11 @@ def test_a_gyrocompass_heading_far_from_the_filters_is_dropped():
     assert eng.P[5, 5] < P0[5, 5]
 
 
-def test_a_long_window_is_caught_up_over_several_calls_and_ends_where_one_call_ends():
+@pytest.mark.parametrize('size', [10, 7])
+def test_a_long_window_is_caught_up_over_several_calls_and_ends_where_one_call_ends(size):
     """A 30-s window at 1 kHz (30 000 samples, more than CATCH_UP_SAMPLES) fed as a live
-    node feeds it, 10 samples a call: the call that ends the window runs over at most
+    node feeds it, 10 (or 7: the window ends inside a call, whose rest waits) samples a
+    call: the call that ends the window runs over at most
     CATCH_UP_SAMPLES stored samples, the pipeline says coarse and catching_up, its rows are
     coarse with an unknown attitude; the next call runs over the rest of the window and the
     queued samples, publishes the current estimate in its last row, and from then on its
@@ -176,17 +178,18 @@ def test_a_long_window_is_caught_up_over_several_calls_and_ends_where_one_call_e
     live = AlignmentPipeline(cfg)
     live.start_clock(0.0)
     rows, seen = [], []
-    for k in range(0, 32000, 10):
-        out = live.process(b.t[k:k + 10], b.dtheta[k:k + 10], b.dv[k:k + 10])
+    for k in range(0, 32000, size):
+        out = live.process(b.t[k:k + size], b.dtheta[k:k + size], b.dv[k:k + size])
+        assert len(out.t) == len(b.t[k:k + size])
         rows.append(out)
         seen.append((live.catch_up is not None, live.phase, live.status()['catching_up']))
     catching = [k for k, s in enumerate(seen) if s[0]]
-    assert catching == [2999]                                  # the window's last call
+    assert catching == [29999 // size]                         # the window's last call
     assert all(s[1] == COARSE and s[2] for s in (seen[k] for k in catching))
     assert all(np.all(np.isnan(rows[k].q)) for k in catching)
     first = catching[-1] + 1
     assert not np.isnan(rows[first].q[-1]).any()
-    done = slice((first + 1) * 10, 32000)
+    done = slice((first + 1) * size, 32000)
     q = np.concatenate([r.q for r in rows[first + 1:]])
     np.testing.assert_allclose(q, ref.q[done], atol=1e-12)
     assert list(np.concatenate([r.phase for r in rows[first + 1:]])) == list(ref.phase[done])

@@ -305,7 +305,11 @@ class AlignmentPipeline:
                     self._finish_coarse()
                     if self.catch_up is not None:
                         self._catch_up(max(CATCH_UP_SAMPLES, 2 * n))
-                    if self.fine is not None and self.catch_up is None and j > i:
+                    if self.catch_up is not None:   # still behind: the rest of this call
+                        self.catch_up.add(t[j:], dtheta[j:], dv[j:])    # waits, unknown
+                        outs.extend([out, unknown(t[j:], COARSE)])
+                        break
+                    if self.fine is not None and j > i:
                         out.phase[-1] = self.fine.phase   # aligned after a reprocessing
                         self._fill_last(out)
                 outs.append(out)
