@@ -318,7 +318,9 @@ class AlignmentPipeline:
             if self.catch_up is not None:   # still behind: these samples wait in its queue
                 self.catch_up.add(t[i:], dtheta[i:], dv[i:])
                 self._catch_up(max(CATCH_UP_SAMPLES, 2 * n))
-                if self.catch_up is not None or self.fine is None:
+                if self.fine is None:       # it diverged: these samples open the new window
+                    continue
+                if self.catch_up is not None:
                     outs.append(unknown(t[i:], COARSE))
                     break
                 # caught up with these samples too: publish the last one's estimate
