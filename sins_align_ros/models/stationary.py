@@ -169,6 +169,15 @@ class StationaryModel:
         return unobservable_variance(lat, noise)
 
 
+def sees_earth_rate(lat, noise):
+    """Tell whether the gyro of ``noise`` (:class:`NoiseSpec`) can find north at rest.
+
+    Its bias sigma at most half the horizontal Earth rate at latitude ``lat`` (rad): above
+    it, the heading of a still base is the bias's, not north's (a MEMS gyro).
+    """
+    return noise.gyro_bias <= 0.5 * earth.OMEGA_IE * np.cos(lat)
+
+
 def unobservable_variance(lat, noise):
     """Misalignment variances (3,) rad^2 the biases leave at rest (seed 002 eq. 15).
 

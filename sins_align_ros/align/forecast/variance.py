@@ -12,8 +12,7 @@ import math
 
 import numpy as np
 
-from ...models.stationary import unobservable_variance
-from ...nav import earth
+from ...models.stationary import sees_earth_rate, unobservable_variance
 from ...units import DPH
 from ..engines.force import ANGLE_UNKNOWN_VAR
 
@@ -44,8 +43,7 @@ def heading_limit_var(lat, noise):
     the horizontal Earth rate, as the self-check judges): then only motion or an external
     heading set the heading and there is no such limit.
     """
-    wc = earth.OMEGA_IE * math.cos(lat)
-    if noise.gyro_bias > 0.5 * wc:
+    if not sees_earth_rate(lat, noise):
         return 0.0
     return float(unobservable_variance(lat, noise)[2])
 

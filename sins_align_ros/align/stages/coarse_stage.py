@@ -14,6 +14,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ...models.stationary import sees_earth_rate
 from ...nav import coarse, earth
 from ...nav.frames import dcm_to_euler, euler_to_dcm
 from ...units import DEG, DPH
@@ -177,7 +178,7 @@ def coarse_sigma(noise, T, lat, moving, cap=30.0 * DEG, floors=True):
         tilt, head = max(tilt, 0.05 * DEG), max(head, 0.5 * DEG)
     head = min(head, cap)
     warning = None
-    if noise.gyro_bias > 0.5 * wc:
+    if not sees_earth_rate(lat, noise):
         warning = (f'gyro bias {noise.gyro_bias / DPH:.3g} deg/h is not small against the '
                    f'horizontal Earth rate {wc / DPH:.3g} deg/h: heading cannot be found on a '
                    f'still base (motion with GNSS aiding is needed)')

@@ -64,7 +64,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from ...nav import coarse, earth
+from ...models.stationary import sees_earth_rate
+from ...nav import coarse
 from ..engines import gyrocompass
 from ..inputs.heading import LINEAR_MAX, yaw_of
 from .coarse_stage import coarse_sigma, seen_noise
@@ -127,8 +128,7 @@ def gyrocompass_plan(noise, lat, T, moving=False):
     heading is the better one there: tactical grade), or a heading beyond the linear model
     (:data:`~..inputs.heading.LINEAR_MAX`).
     """
-    wc = earth.OMEGA_IE * np.cos(lat)
-    if moving or noise.gyro_bias > 0.5 * wc:
+    if moving or not sees_earth_rate(lat, noise):
         return None
     rate_var = gyrocompass.heading_variance_rate(noise, lat)
     span = gyrocompass.gyro_span(noise, lat)
