@@ -31,7 +31,8 @@ import numpy as np
 from ...filters import kf
 from ...filters.chi2 import chi2_quantile
 from .gnss_gate import GnssGate
-from ..inputs.heading import LINEAR_MAX, take_heading, wrap, yaw_of, yaw_row
+from ..inputs.heading import (LINEAR_MAX, heading_update, take_heading, wrap, yaw_of,
+                              yaw_row)
 from .heading_update import gated_yaw_update
 from .still_coast import StillCoast
 from .still_watch import P_FALSE, ROLLBACK_S
@@ -313,16 +314,11 @@ class StationaryEngine(StillCoast):
         H[ip] = h
         H[ib] = -h @ M
         y = wrap(yaw - yaw_of(C) - float(H @ self.x))
-        PHt = self.P @ H
-        S = float(H @ PHt) + var
-        if max_nis is not None and y * y / S > max_nis:
-            return y, float(np.sqrt(S)), False
-        K = PHt / S
-        A = np.eye(m.n) - np.outer(K, H)
-        P = A @ self.P @ A.T + var * np.outer(K, K)
-        self.x, self.P = self.x + K * y, 0.5 * (P + P.T)
-        self._feed_back()
-        return y, float(np.sqrt(S)), True
+        x, P, y, S, used = heading_update(self.x, self.P, H, y, var, max_nis)
+        if used:
+            self.x, self.P = x, P
+            self._feed_back()
+        return y, float(np.sqrt(S)), used
 
     def heading_measured(self):
         """Drop the heading's :attr:`bound`: an external heading, not the gyro bias, sets it."""

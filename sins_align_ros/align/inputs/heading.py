@@ -86,13 +86,21 @@ def yaw_update(x, P, i_phi, C_b_n, yaw, var, max_nis=None):
     n = len(x)
     H = np.zeros(n)
     H[np.arange(n)[i_phi]] = yaw_row(C_b_n)
-    y = wrap(yaw - yaw_of(C_b_n) - float(H @ x))
+    return heading_update(x, P, H, wrap(yaw - yaw_of(C_b_n) - float(H @ x)), var, max_nis)
+
+
+def heading_update(x, P, H, y, var, max_nis=None):
+    """Scalar EKF update of ``x`` (n,), ``P`` (n, n): row ``H`` (n,), innovation ``y`` (rad).
+
+    ``var``: the measurement variance (rad^2); ``max_nis``: the gate (None: off). Returns
+    ``(x, P, y, S, accepted)``; a rejected epoch returns ``x``, ``P`` unchanged. Joseph form.
+    """
     PHt = P @ H
     S = float(H @ PHt) + var
     if max_nis is not None and y * y / S > max_nis:
         return x, P, y, S, False
     K = PHt / S
-    A = np.eye(n) - np.outer(K, H)
+    A = np.eye(len(x)) - np.outer(K, H)
     P = A @ P @ A.T + var * np.outer(K, K)
     return x + K * y, 0.5 * (P + P.T), y, S, True
 
