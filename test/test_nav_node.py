@@ -47,10 +47,10 @@ def _run_car(ros_context, fine_filter, duration=200.0, **extra):
 
 
 def test_ukf_node_publishes_odometry_at_imu_rate_against_truth(ros_context):
-    """fine_filter ukf on 200 s of seed 003's car through real publishers: one ~/odom per
+    """fine_filter ukf on 120 s of seed 003's car through real publishers: one ~/odom per
     IMU sample from the start of fine alignment, frames as documented, position and body
     velocity within 3 sigma of the simulator truth, and the origin in the diagnostics."""
-    node, ex, odom, diag, block = _run_car(ros_context, 'ukf')
+    node, ex, odom, diag, block = _run_car(ros_context, 'ukf', duration=120.0)
     # the car drives off at 30 s; the coarse window ends 5 s after the 1 Hz receiver shows
     # it moving (issue 46), by 38 s: from there on one ~/odom per IMU sample
     n_fine = int(np.sum(block.imu.t > 38.0 + 1e-6))

@@ -51,7 +51,7 @@ class Recorder:
 def test_simulator_publishes_consistent_physical_data(ros_context):
     sim = SimulatorNode(context=ros_context, parameter_overrides=[
         Parameter('scenario', value='static_navigation'), Parameter('imu_rate_hz', value=200.0),
-        Parameter('real_time_factor', value=8.0), Parameter('start_time', value=1000.0),
+        Parameter('real_time_factor', value=4.0), Parameter('start_time', value=1000.0),
         Parameter('seed', value=3)])
     rec = Recorder(ros_context)
     ex = SingleThreadedExecutor(context=ros_context)

@@ -88,8 +88,13 @@ class SimulatorNode(Node):
         self.shutdown_when_done = p['shutdown_when_done']
         self.done = False
 
-        qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
-                         history=HistoryPolicy.KEEP_LAST)
+        # The IMU writer keeps five wall seconds of samples (at least 1000): a reader whose
+        # executor is held up loses packets in transport, and the reliable protocol repairs
+        # them on the next heartbeat (3 s in Fast DDS by default) only if the writer still
+        # holds them (CI lost 6 samples in 1200 at 8x and 200 Hz with a 1000-sample history).
+        rate = max(p["real_time_factor"], 1.0) / self.dt
+        qos = QoSProfile(depth=int(min(max(1000, 5 * rate), 50000)),
+                         reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
         depth = {'imu': qos, 'fix': 10, 'vel': 10, 'truth': 50}
         self.pubs = {k: self.create_publisher(ros_message_class(typ), name, depth[k])
                      for k, (name, typ) in topics(self.sc).items()}
