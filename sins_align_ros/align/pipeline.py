@@ -309,8 +309,7 @@ class AlignmentPipeline:
                         self.catch_up.add(t[j:], dtheta[j:], dv[j:])    # waits, unknown
                         outs.extend([out, unknown(t[j:], COARSE)])
                         break
-                    if self.fine is not None and j > i:
-                        out.phase[-1] = self.fine.phase   # aligned after a reprocessing
+                    if self.fine is not None and j > i:   # (aligned after a reprocessing)
                         self._fill_last(out)
                 outs.append(out)
                 i = j
@@ -325,7 +324,6 @@ class AlignmentPipeline:
                     break
                 # caught up with these samples too: publish the last one's estimate
                 out = unknown(t[i:], COARSE)
-                out.phase[-1] = self.fine.phase
                 self._fill_last(out)
                 outs.append(out)
                 break
@@ -409,11 +407,12 @@ class AlignmentPipeline:
             self._diverged(reason)
 
     def _fill_last(self, out):
-        """Put the coarse result into the last row of a coarse block."""
+        """Put the fine stage's current estimate and phase into the last row of ``out``."""
         r = Rows(out.t[-1:], self.mech.C_b_n[None], self.attitude_cov(),
                  self.fine.phase).output()
         out.q[-1], out.euler[-1], out.sigma[-1], out.P_phi[-1] = r.q[0], r.euler[0], \
             r.sigma[0], r.P_phi[0]
+        out.phase[-1] = self.fine.phase
 
     def _diverged(self, reason, reuse=False):
         """Restart from coarse alignment after a filter failure, keeping GNSS history.

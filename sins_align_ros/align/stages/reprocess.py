@@ -181,8 +181,8 @@ class CatchUp:
 
     def __init__(self, window):
         tt, dth, dvv, _ = window
+        #: the samples not yet run over, in parts (stored, then live ones as they come)
         self._parts = [(tt, dth, dvv)]
-        self.i = 0
 
     def add(self, t, dtheta, dv):
         """Queue live samples ``t`` (N,), ``dtheta``, ``dv`` (N, 3) behind the stored ones."""
@@ -197,9 +197,7 @@ class CatchUp:
     @property
     def left_s(self):
         """Seconds of queued samples not yet run over."""
-        t = self._parts[-1][0]
-        first = self._parts[0][0]
-        return float(t[-1] - first[min(self.i, len(first) - 1)])
+        return float(self._parts[-1][0][-1] - self._parts[0][0][0])
 
     def run(self, fine, gnss, budget=CATCH_UP_SAMPLES):
         """Run ``fine`` over at most ``budget`` queued samples: ``(done, diverged reason)``.
@@ -208,17 +206,16 @@ class CatchUp:
         dropped; a stage that reached ``aligned`` while catching up counts from the last
         sample run over when it has caught up (the first row it publishes).
         """
-        if len(self._parts) > 1:                # one queue: stored then live samples
-            tt, dth, dvv = (np.concatenate(a) for a in zip(*self._parts))
-            self._parts = [(tt, dth, dvv)]
-        tt, dth, dvv = self._parts[0]
-        end = min(len(tt), self.i + int(budget))
-        while self.i < end:
-            _, j, reason = fine.run(tt[:end], dth[:end], dvv[:end], self.i, gnss)
-            self.i = j
+        parts = self._parts
+        tt, dth, dvv = parts[0] if len(parts) == 1 else (np.concatenate(a) for a in zip(*parts))
+        end, i = min(len(tt), int(budget)), 0
+        while i < end:
+            _, i, reason = fine.run(tt[:end], dth[:end], dvv[:end], i, gnss)
             if reason is not None:
                 return True, reason
-        done = self.i >= len(tt)
+        # what is left, stored then live samples, as one part (the samples run over dropped)
+        self._parts = [(tt[i:], dth[i:], dvv[i:])]
+        done = i >= len(tt)
         if done and fine.t_aligned is not None:
             fine.t_aligned = max(fine.t_aligned, float(tt[-1]))
         return done, None
