@@ -11,8 +11,9 @@ import math
 import numpy as np
 import pytest
 
-from sins_align_ros.align.stages.angle_walk import (BOUNDED_RATIO, DEGREE, walk_density,
-                                                    walk_factor, walk_or_noise)
+from sins_align_ros.align.stages.angle_walk import (BOUNDED_RATIO, DEGREE, SPANS_S,
+                                                    WalkBound, walk_density, walk_factor,
+                                                    walk_or_noise)
 from sins_align_ros.align.stages.noise_estimates import difference_density
 from sins_align_ros.sim.imu import ImuErrors, ImuSpec
 from sins_align_ros.units import DPSH
@@ -146,3 +147,41 @@ def test_a_vibrating_robots_tilt_claim_is_sharp_and_honest():
     assert max(sig[-1, 0], sig[-1, 1]) <= target
     assert np.all(np.abs(err[-1, :2]) <= 3.0 * sig[-1, :2])
     assert run.pipeline.check.widened['gyro_arw_dpsh'] < 20.0
+
+
+def _robot_gyro(seconds, q_dpsh, seed):
+    """The simulator's robot vibration (3 deg/s per sample at 30 Hz, 0.05 s) on a still gyro
+    of ``q_dpsh`` deg/sqrt(h): ``(dtheta (N, 3), dt)``."""
+    dt = 1.0 / 30.0
+    N = int(seconds / dt)
+    spec = ImuSpec(gyro_arw_dpsh=q_dpsh, vibration_gyro_dps=3.0, vibration_tau_s=0.05)
+    dth, _ = ImuErrors(spec, np.random.default_rng(seed)).apply(
+        np.zeros((N, 3)), np.tile([0.0, 0.0, 9.8 * dt], (N, 1)), dt)
+    return dth, dt
+
+
+def test_windows_summed_are_the_whole_data_read_at_once():
+    """Windows of 16 s hold whole chunks of every span (2, 4, 8, 16 s): their sums are the
+    one-pass sums, so the bound is the same to rounding."""
+    dth, dt = _robot_gyro(320.0, 3.0, 7)
+    n16 = int(round(16.0 / dt))
+    acc = WalkBound()
+    for k in range(0, len(dth), n16):
+        acc.add(dth[k:k + n16], dt)
+    assert max(SPANS_S) == 16.0
+    assert acc.bound(dt) == pytest.approx(walk_density(dth, np.full(len(dth), dt)), rel=1e-9)
+
+
+@pytest.mark.parametrize('q_dpsh', [0.42, 3.0])
+def test_the_difference_bound_takes_the_jitter_off(q_dpsh):
+    """400 s of the vibrating robot gyro: the jitter (6.1' per axis) is what the 16-s span's
+    bound mostly holds (sigma_a^2 / k(16) is 8.4 deg/sqrt(h) squared against q^2); the two-
+    span difference cancels it, so what the bound holds over the truth (in squares) is under
+    half of the jitter's share of that one; and the bound stays above the truth (an
+    estimate plus two standard errors, the median of three axes)."""
+    dth, dt = _robot_gyro(400.0, q_dpsh, 3)
+    dts = np.full(len(dth), dt)
+    single = walk_density(dth, dts, spans=(16.0,))
+    est = walk_density(dth, dts)
+    q = q_dpsh * DPSH
+    assert q < est and est ** 2 - q ** 2 < 0.5 * (single ** 2 - q ** 2)

@@ -202,7 +202,10 @@ class AidedEngine(Engine, Protocol):
         """
 
     def widen_process_noise(self, rows: slice, factor: float, floor: float) -> None:
-        """Multiply the process noise of state ``rows`` by ``factor`` (> 1), at least ``floor``."""
+        """Multiply the process noise of state ``rows`` by ``factor``, at least ``floor``.
+
+        ``factor`` < 1 narrows (the motion check, a random walk the data bound tighter).
+        """
 
     def raise_drift_noise(self, q: float) -> None:
         """Raise the gyro-drift states' process noise (rad^2/s^3) to at least ``q``, for good."""

@@ -51,7 +51,7 @@ class ProcessNoise:
             self.kf.Q_lent = None
 
     def widen_process_noise(self, rows, factor, floor):
-        """Multiply the process noise of state ``rows`` (a slice) by ``factor`` (> 1).
+        """Multiply the process noise of state ``rows`` (a slice) by ``factor`` (< 1 narrows).
 
         The continuous densities ``Qc`` and the model's own ``_Qc0`` (so that relaxing an
         inflation returns to the widened model, not below it), at least ``floor`` each; an

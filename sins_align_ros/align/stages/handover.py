@@ -87,6 +87,9 @@ def hand_over(window, cfg, noise, clock, gnss, headings, install):
         if check is not None and check.latitude is not None:
             position_source = 'gyro_latitude'      # the self-check's estimate (in place)
         if check.widened:
+            # what the user configured, for the motion check (it narrows its own widenings
+            # back as its data grow, never below the configured figure)
+            cfg['configured'] = {k: cfg[k] for k in check.widened if k in cfg}
             cfg.update(check.widened)
             noise = noise_spec(cfg)
         if 'gnss_lever_arm_m' in check.widened:
