@@ -46,7 +46,7 @@ the coarse window's 60 s, or the first motion window, left 7-13 deg/sqrt(h) wher
 show 4-5), it is narrowed to it, never below the configured ``gyro_arw_dpsh`` (figure
 ``motion_check_gyro_walk_narrowed_dpsh``). On the simulated robot with positions only
 this took the published tilt 1-sigma from 44-52' to 32-38' (kf, ukf) and 31-34' to
-24-26' (asckf), every told cell still honest (bench/results/integrity_ground.md).
+24-26' (asckf), every told cell still honest (bench/results/integrity_robot_walk.md).
 Each widening is a finding (a WARN on ``/diagnostics`` once, and the
 figures ``motion_check_*``). The windows are evaluated at the GNSS epoch that follows
 their last sample, so the block and the sample-by-sample paths of the fine stage widen
