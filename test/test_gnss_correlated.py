@@ -15,6 +15,7 @@ from sins_align_ros.align.stages.consistency import (LONG_BLOCK_S, LONG_BLOCKS, 
 from sins_align_ros.align.engines.gnss_markov import (GnssMarkov, increment_var, random_walk_var,
                                                       white_equivalent_var)
 from sins_align_ros.align.inputs.gnss_fix import GnssFix
+from sins_align_ros.align.engines.gnss_markov_states import ASSUMED_FACTOR
 from sins_align_ros.align.engines.moving import MovingBaseAlignment
 from sins_align_ros.eval.integrity import MAX_OUTSIDE, run_integrity
 from sins_align_ros.eval.run import run_pipeline
@@ -304,8 +305,9 @@ def test_a_position_only_cars_heading_claim_is_honest_with_node_defaults():
     reporting 0.9 m) is not described to the filter. Taken as white, the filter's position
     and velocity states absorb the slow error unseen by the 20-s blocks, and the heading
     learnt from the position differences is overconfident: more than 5 % of the 1-s rows
-    have it outside 3 sigma. Each fix's own 0.9 m assumed correlated (the default,
-    ``gnss_position_only_markov``), every claim holds, and a WARN says what was assumed.
+    have it outside 3 sigma. The error assumed correlated (the default,
+    ``gnss_position_only_markov``: twice each fix's own 0.9 m, as three states of the
+    ``kf``), every claim holds, and a WARN says what was assumed.
     """
     sc = scenario('car_consumer', duration=480.0)
     sc.imu = SENSOR_GRADES['mems']
@@ -323,6 +325,8 @@ def test_a_position_only_cars_heading_claim_is_honest_with_node_defaults():
     assert r0['silent'] and r0['outside'][2] > MAX_OUTSIDE
     assert not r1['silent'] and r1['outside'][2] <= MAX_OUTSIDE and r1['end_inside']
     p = assumed.pipeline
-    assert p.status()['gnss_position_markov_sigma_m'] == pytest.approx(0.9, rel=1e-12)
+    # (kf carries the error as states, assumed at twice the fix's sigma: gnss_markov_states)
+    assert p.status()['gnss_position_markov_sigma_m'] == pytest.approx(ASSUMED_FACTOR * 0.9,
+                                                                       rel=1e-12)
     assert white.pipeline.status()['gnss_position_markov_sigma_m'] == 0.0
     assert [t for t in p.warnings if t.startswith('position-only GNSS')]

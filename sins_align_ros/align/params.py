@@ -227,15 +227,17 @@ ALIGNMENT_PARAMS = (
           0.001, 100.0),
     Param('gnss_position_markov_sigma_m', 0.0, 'GNSS position error correlated in time: '
           'first-order Gauss-Markov sigma per ENU axis beside the white noise (a consumer '
-          'receiver: about 1.5), m; the moving-base filters add its white equivalent over '
-          'the fix interval to each fix\'s position noise (docs/alignment_node.md); 0: '
+          'receiver: about 1.5), m; kf and ukf carry it as three states, the other moving-base '
+          'filters add its white equivalent over the fix interval to each fix\'s position '
+          'noise (docs/alignment_node.md); 0: '
           'none assumed, until the innovations show one over tens of seconds (then '
           'widened and said)', 0.0, 100.0),
     Param('gnss_position_markov_tau_s', 60.0, 'correlation time of that Gauss-Markov error '
           '(also when the innovations switch it on), s', 1.0, 1e5),
     Param('gnss_position_only_markov', True, 'a position-only receiver (no gnss/vel when '
           'the fine stage starts) with gnss_position_markov_sigma_m 0: take each fix\'s '
-          'horizontal position sigma (reported, else gnss_pos_sigma_m) as a Gauss-Markov '
+          'horizontal position sigma (reported, else gnss_pos_sigma_m; twice it in kf and '
+          'ukf, which carry the error as states) as a Gauss-Markov '
           'error of gnss_position_markov_tau_s too, since a standalone receiver\'s error is '
           'mostly correlated over tens of seconds and its heading comes from position '
           'differences (said with a WARN); false: white until the innovations show otherwise'),

@@ -283,6 +283,14 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ProcessNoise, ForceMode
         """Move the estimate into the mechanization; ``fix`` None after a rejected epoch."""
         raise NotImplementedError
 
+    def _before_epoch(self, fix):
+        """Act before ``fix``'s epoch, ahead of its transition (states to append: none)."""
+
+    def _hx(self, idx):
+        """Return the measurement function (batched) of the full vector's rows ``idx``."""
+        rows = self.rows[idx]
+        return batched(lambda X: X[rows])
+
     # -- GNSS epochs ------------------------------------------------------------------
     def update(self, fix, t_now):
         """Filter epoch for ``fix``: predict over the interval, update, feed back.
@@ -293,6 +301,7 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ProcessNoise, ForceMode
         and ``earth.gravity`` overflowed, aborting a benchmark instead of restarting.
         """
         kf = self.kf
+        self._before_epoch(fix)
         try:
             z, idx = self.measurement(fix, t_now)
             fx = self._transition()
@@ -300,7 +309,7 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ProcessNoise, ForceMode
             raise FilterDiverged(f'filter diverged at t={fix.t:.3f} s (non-finite navigation '
                                  'state)') from None
         rows = self.rows[idx]
-        hx = batched(lambda X: X[rows])
+        hx = self._hx(idx)
         lent = self._set_process_noise()
         self._set_epoch_noise(fix)
         arm = self._lend_arm_noise(fix)

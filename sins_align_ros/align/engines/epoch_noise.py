@@ -59,17 +59,27 @@ class EpochNoise:
             var -= self.velocity_jitter_var     # the last epoch's R has it (_set_epoch_noise)
         return max(var, 0.0)
 
-    def set_gnss_markov(self, sigma, tau, method='measurement'):
+    def set_gnss_markov(self, sigma, tau, method=None):
         """Assume a Gauss-Markov position error of ``sigma`` m per axis, ``tau`` s.
 
         Sigma 0 assumes none until the consistency monitor's long-horizon test finds one
         (:meth:`widen_gnss_noise`); ``tau`` is then the correlation time it assumes.
+        ``method`` None: the engine's (:meth:`_markov_method`).
         """
-        self.gnss_markov = GnssMarkov(sigma, tau, method)
+        self.gnss_markov = GnssMarkov(sigma, tau, method or self._markov_method())
+
+    def _markov_method(self):
+        """Return the form the engine takes the error in: states where it can carry them.
+
+        ``state`` (:mod:`.gnss_markov_states`) for an engine that has them and sets R,
+        else ``measurement`` (:mod:`.gnss_markov`; a filter that estimates R takes the
+        ``process`` form of it, :meth:`_markov_in_R`).
+        """
+        return 'state' if getattr(self, 'markov_states', False) and self.sets_R else 'measurement'
 
     def _markov(self):
         if self.gnss_markov is None:
-            self.gnss_markov = GnssMarkov()
+            self.gnss_markov = GnssMarkov(method=self._markov_method())
         return self.gnss_markov
 
     def _markov_in_R(self):
@@ -79,7 +89,8 @@ class EpochNoise:
     def _take_markov(self, fix):
         """Before ``fix``'s update: the interval since the last fix; the random walk.
 
-        Unless the error goes into R (:meth:`_markov_in_R`), raises the measured position
+        Unless the error goes into R (:meth:`_markov_in_R`) or is states of its own
+        (``state``, :mod:`.gnss_markov_states`), raises the measured position
         states' variance by ``q dt`` (:meth:`~.gnss_markov.GnssMarkov.process_var`); a
         filter's P setter keeps its own form (a square-root factor is refactored).
         """
@@ -87,7 +98,8 @@ class EpochNoise:
         if gm.from_fixes:
             gm.assume(self._fix_sigma_h(fix))
         dt = gm.epoch(fix.t)
-        var = 0.0 if self._markov_in_R() else gm.process_var(dt)
+        in_P = not (self._markov_in_R() or gm.method == 'state')
+        var = gm.process_var(dt) if in_P else 0.0
         if var <= 0.0:
             return
         k = np.asarray(self.rows)[position_rows(self.MEAS_ENU)]

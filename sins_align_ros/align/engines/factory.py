@@ -82,8 +82,9 @@ def make_engine(cfg, noise, start, has_velocity, heading_known=True):
     if (not has_velocity and cfg['gnss_position_only_markov']
             and cfg['gnss_position_markov_sigma_m'] <= 0.0 and eng.measures_position):
         eng.gnss_markov.from_fixes = True
+        twice = 'twice ' if eng.gnss_markov.method == 'state' else ''
         warnings.append(
-            'position-only GNSS: each fix\'s horizontal position sigma is taken as a '
+            f'position-only GNSS: {twice}each fix\'s horizontal position sigma is taken as a '
             'Gauss-Markov error of %.0f s as well (a standalone receiver\'s error is mostly '
             'correlated over tens of seconds, and the heading comes from position '
             'differences; gnss_position_only_markov)' % cfg['gnss_position_markov_tau_s'])

@@ -21,6 +21,8 @@ The textbooks' exact treatment of such coloured measurement noise is to augment 
 state with ``b`` (Brown & Hwang and Gelb, coloured measurement noise; Bar-Shalom, Li &
 Kirubarajan, *Estimation with Applications to Tracking and Navigation*, 2001, on
 autocorrelated measurement noise). Here it is
+done so in the navigation filters that set their own R (``kf``, ``ukf``: the ``state``
+form, :mod:`.gnss_markov_states`, the default there since session 44). Elsewhere it is
 decorrelated without new states, in one of two ways (:attr:`GnssMarkov.method`):
 
 ``process``: the GM error is taken as a random walk of the measured
@@ -48,9 +50,12 @@ Which is better, measured (bench/integrity.py's robot:posonly cells, plain MEMS,
 each, the model told 1.5 m / 60 s): ``measurement`` 0 silent-wrong runs (tilt sigma 2.4
 deg), ``process`` 5 (tilt sigma 1.2-1.3 deg), none 4; the heading was unknown in all.
 On car:consumer (Doppler velocity) neither moved the attitude or its sigma by more
-than 0.01 deg: the velocity carries the heading there. So ``measurement`` is the default;
-the exact augmented state remains a possible refinement (it would keep the short-lag
-information ``measurement`` gives away).
+than 0.01 deg: the velocity carries the heading there. So ``measurement`` was the
+default; the augmented state (``state``, :mod:`.gnss_markov_states`) has since replaced it
+in ``kf`` and ``ukf``, keeping the short-lag information ``measurement`` gives away
+(robot:posonly ``kf``: tilt sigma 32-38' -> 24-26', every cell honest;
+bench/results/integrity_gnss_states.md). ``measurement`` stays the form of seed 000's
+engine and, on top of the states, of any epoch whose heading is unknown.
 
 A side effect to know: taken as white, the correlated error made the 10-epoch
 consistency monitor inflate the state (its innovations persist: "a model error"), which
@@ -85,7 +90,7 @@ import math
 
 import numpy as np
 
-METHODS = ('process', 'measurement')
+METHODS = ('process', 'measurement', 'state')
 #: largest GM sigma the long-horizon test widens the model to, m
 MAX_SIGMA = 30.0
 

@@ -30,13 +30,14 @@ import math
 
 import numpy as np
 
-from ...filters.linear_kf import linear
+from ...filters.linear_kf import linear, measurement_matrix
 from ...models import loosely_coupled as lc
 from ...nav import earth
 from ...nav.frames import orthonormalize, reorthonormalize, rotvec_to_dcm
 from ...units import DPH, UG
 from .aided import GnssAidedEngine
 from .gnss_gate import GnssGate
+from .gnss_markov_states import GnssMarkovStates
 from .gyro_scale import GyroScaleStates
 from .heading_range import (HEADING_CLAIM_MAX_VAR, HEADING_LINEAR_MAX_DEG,
                             HEADING_LINEAR_MAX_VAR, HeadingRange)
@@ -88,7 +89,7 @@ def model_noise(n_states, sigma_phi, sigma_v, sigma_p, gyro, accel, gyro_arw, ac
     return P0, Qc
 
 
-class IntegratedNavigation(HeadingRange, GyroScaleStates, GnssAidedEngine):
+class IntegratedNavigation(HeadingRange, GyroScaleStates, GnssMarkovStates, GnssAidedEngine):
     """Mechanization + seed 001/003 filter; see the module docstring.
 
     The base of the navigation engines: a subclass makes the filter
@@ -225,10 +226,11 @@ class IntegratedNavigation(HeadingRange, GyroScaleStates, GnssAidedEngine):
             f_n = self._interval_force(f_n, m.lat, m.h)
         F = lc.F_matrix(C, f_n, v_n, m.lat, m.h, self.tau_g, self.tau_a, self.n0)
         w_b = None
+        F = np.pad(F, (0, self.n - self.n0))
         if self.i_sf is not None:          # gyro scale-factor states (:mod:`.gyro_scale`)
             w_b = self._interval_rate(T)
-            F = np.pad(F, (0, self.n - self.n0))
             self._scale_columns(F, C, w_b)
+        self._markov_columns(F)            # the receiver's error (:mod:`.gnss_markov_states`)
         self._F = F
         self._Phi = lc.transition(self._F, T)
         return self._propagation(f_n, v_n, C, T, w_b)
@@ -281,8 +283,7 @@ class IntegratedNavigation(HeadingRange, GyroScaleStates, GnssAidedEngine):
             return None
         T, Phi = self._T_last, self._Phi           # as _transition made them
         idx = np.asarray(self.last_rows)
-        H = np.zeros((len(idx), self.n))
-        H[np.arange(len(idx)), self.rows[idx]] = 1.0
+        H = measurement_matrix(self._hx(idx), self.n)
         return dict(P=self.kf.P.copy(), Phi=Phi, Q=self._process_noise(Phi, T), H=H,
                     R=np.asarray(self.kf.R)[np.ix_(idx, idx)], T=T, i_phi=self.i_phi,
                     heading_cap=self.heading_cap,
@@ -335,7 +336,7 @@ class IntegratedNavigation(HeadingRange, GyroScaleStates, GnssAidedEngine):
             self.eps_const += x[lc.I_EPSB]
             self.eps_markov += x[lc.I_EPSR]
             self.nab += x[lc.I_NAB18]
-        kf.x = np.zeros(self.n)
+        kf.x = self._kept_state(x)        # zero, but the receiver's error (its own states)
         self._reacquire_heading(fix)
 
     # -- output -------------------------------------------------------------------------
@@ -363,6 +364,7 @@ class IntegratedNavigation(HeadingRange, GyroScaleStates, GnssAidedEngine):
         s['heading_held_epochs'] = self.n_heading_held
         s['heading_from_track'] = self.n_heading_reacquired
         s.update(self.scale_status())
+        s.update(self.markov_status())
         return s
 
     @staticmethod

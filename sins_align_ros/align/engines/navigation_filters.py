@@ -103,7 +103,9 @@ class UnscentedNavigation(IntegratedNavigation):
         m = self.mech
         sub = max(1, int(math.ceil(T / 1.0)))
         args = (f_n, v_n, C, m.lat, m.h, self.tau_g, self.tau_a, T)
-        return batched(lambda X: lc.propagate18(X, *args, substeps=sub, w_b=w_b))
+        # (the receiver's error states, when there, decay beside it: :mod:`.gnss_markov_states`)
+        return self._markov_decayed(
+            batched(lambda X: lc.propagate18(X, *args, substeps=sub, w_b=w_b)), T)
 
     @staticmethod
     def _attitude_correction(phi):
