@@ -229,25 +229,9 @@ def test_long_horizon_test_passes_white_innovations(seed):
     assert test.n_failures == 0 and test.ratio < test.bound
 
 
-@pytest.fixture(scope='module')
-def robot():
-    """bench/integrity.py's robot:posonly cell, plain MEMS, seed 1000 (400 s, 30 Hz IMU).
-
-    The skid-steer robot (never still, 1 m/s, turning) with its vibration, and a
-    position-only receiver at 2.5 Hz: 0.8 m white plus 1.5 m Gauss-Markov (60 s), reporting
-    0.9 m.
-    """
-    sc = scenario('robot_skid', duration=400.0)
-    vib = {k: v for k, v in vars(sc.imu).items() if k.startswith('vibration_')}
-    sc.imu = SENSOR_GRADES['mems'].with_(**vib)
-    sc.gnss = GnssSpec(rate_hz=2.5, pos_sigma_h=0.8, pos_sigma_v=1.6, pos_markov_sigma=1.5,
-                       pos_markov_tau_s=60.0, vel_sigma=0.1, velocity=False,
-                       reported_pos_sigma_h=0.9, reported_pos_sigma_v=1.8)
-    return sc, simulate(sc, 1000)
-
-
 @pytest.mark.slow
-def test_a_position_only_robots_tilt_claim_is_honest_with_the_correlated_error_told(robot):
+def test_a_position_only_robots_tilt_claim_is_honest_with_the_correlated_error_told(
+        posonly_robot):
     """The KF told the right sensors: silent-wrong with the GNSS taken as white, not after.
 
     Taken as white (the model before), 0.8 m at 2.5 Hz makes the positions' implied
@@ -259,7 +243,7 @@ def test_a_position_only_robots_tilt_claim_is_honest_with_the_correlated_error_t
     white arm is not silent on this seed (0 % of rows outside: the heading it finds keeps the
     tilt honest here, which is not a property of the position model).
     """
-    sc, data = robot
+    sc, data = posonly_robot
     before = alignment_params(sc, 'kf', gnss_position_markov_sigma_m=0.0, course_heading=False,
                               gnss_position_only_markov=False)
     after = alignment_params(sc, 'kf', course_heading=False)

@@ -18,11 +18,9 @@ from sins_align_ros.align.engines.registry import engine_class
 from sins_align_ros.align.inputs.gnss_fix import GnssFix
 from sins_align_ros.eval.integrity import MAX_OUTSIDE, run_integrity
 from sins_align_ros.eval.run import run_pipeline
-from sins_align_ros.eval.scenarios import simulate
 from sins_align_ros.models import loosely_coupled as lc
 from sins_align_ros.nav import earth
-from sins_align_ros.sim.gnss import GnssSpec
-from sins_align_ros.sim.presets import SENSOR_GRADES, alignment_params, scenario
+from sins_align_ros.sim.presets import alignment_params
 from sins_align_ros.units import DPH, UG
 
 LAT = math.radians(45.0)
@@ -126,19 +124,9 @@ def test_filters_that_estimate_R_keep_the_process_form():
     assert eng.n == n0 and eng.i_gm is None
 
 
-@pytest.fixture(scope='module')
-def robot():
-    """bench/integrity.py's robot:posonly cell, plain MEMS, seed 1000 (400 s, 30 Hz IMU)."""
-    sc = scenario('robot_skid', duration=400.0)
-    vib = {k: v for k, v in vars(sc.imu).items() if k.startswith('vibration_')}
-    sc.imu = SENSOR_GRADES['mems'].with_(**vib)
-    sc.gnss = GnssSpec(rate_hz=2.5, pos_sigma_h=0.8, pos_sigma_v=1.6, pos_markov_sigma=1.5,
-                       pos_markov_tau_s=60.0, vel_sigma=0.1, velocity=False,
-                       reported_pos_sigma_h=0.9, reported_pos_sigma_v=1.8)
-    return sc, simulate(sc, 1000)
-
-
-def test_a_position_only_robots_tilt_claim_narrows_with_the_states_and_holds(robot, monkeypatch):
+@pytest.mark.slow
+def test_a_position_only_robots_tilt_claim_narrows_with_the_states_and_holds(
+        posonly_robot, monkeypatch):
     """The KF told the right receiver (1.5 m over 60 s): the states against the white
     equivalent alone (the engine told it cannot carry them).
 
@@ -146,7 +134,7 @@ def test_a_position_only_robots_tilt_claim_narrows_with_the_states_and_holds(rob
     37'; the states keep the short-lag differences and it ends near 25' (issue 44's bound
     for this grade: 1.5 x 5 mg / g = 25.8'), with every 1-s row inside 3 sigma.
     """
-    sc, data = robot
+    sc, data = posonly_robot
     params = alignment_params(sc, 'kf')
     assert params['gnss_position_markov_sigma_m'] == 1.5
     states = run_integrity(run_pipeline(params, data), sc.imu_rate_hz)
