@@ -55,7 +55,8 @@ ASSUMED_FACTOR = 2.0
 class GnssMarkovStates:
     """Mixin of the navigation engines: the receiver's Gauss-Markov error as states.
 
-    Uses the engine's ``kf``, ``n``, ``Qc``, ``_Qc0``, ``_held``, ``rows``, ``MEAS_ENU``,
+    Uses the engine's ``kf``, ``n``, ``rows``, ``MEAS_ENU``, ``_append_states`` and
+    ``_raise_Qc`` (:class:`~.process_noise.ProcessNoise`),
     ``gnss_markov`` (:class:`~.gnss_markov.GnssMarkov`, method ``state``) and
     ``_fix_sigma_h``. The engine calls :meth:`_before_epoch` before each GNSS epoch's
     transition, builds its measurement function with :meth:`_hx`, pads its ``F`` with
@@ -81,22 +82,14 @@ class GnssMarkovStates:
             return
         q = 2.0 * gm.sigma ** 2 / gm.tau
         if self.i_gm is None:
-            n0 = self.n
-            self.kf.append_states(np.full(N_MARKOV, gm.sigma ** 2))
-            self.Qc = np.r_[self.Qc, np.full(N_MARKOV, q)]
-            self._Qc0 = np.r_[self._Qc0, np.full(N_MARKOV, q)]
-            self._held = np.r_[self._held, np.zeros(N_MARKOV, dtype=bool)]
-            self.n, self.i_gm = n0 + N_MARKOV, slice(n0, n0 + N_MARKOV)
-            self._F = self._Phi = None      # the last interval's model had n0 states
+            self.i_gm = self._append_states(np.full(N_MARKOV, gm.sigma ** 2),
+                                            np.full(N_MARKOV, q))
         else:
             k = np.arange(self.n)[self.i_gm]
             P = self.kf.P.copy()
             P[k, k] += gm.sigma ** 2 - self.gm_sigma ** 2
             self.kf.P = P
-            for name in ('Qc', '_Qc0'):
-                v = np.array(getattr(self, name), dtype=float)
-                v[k] = np.maximum(v[k], q)
-                setattr(self, name, v)
+            self._raise_Qc(k, q)
         self.gm_sigma = gm.sigma
 
     def _markov_in_R(self):
@@ -141,9 +134,9 @@ class GnssMarkovStates:
 
     def _hx(self, idx):
         """Return the measurement function (batched) of full-vector rows ``idx``: ``dp - b``."""
-        rows = self.rows[idx]
         if self.i_gm is None:
-            return batched(lambda X: X[rows])
+            return super()._hx(idx)
+        rows = self.rows[idx]
         axes = np.asarray(self.MEAS_ENU)[idx]
         pos = axes < 3
         b = np.arange(self.n)[self.i_gm][axes[pos]]

@@ -120,21 +120,16 @@ class GyroScaleStates:
     def _append_scale_states(self, var):
         """Grow the state by three random constants of variance ``var`` (zero mean).
 
-        The filter appends them (``kf.append_states``: a covariance filter pads ``x``,
-        ``P`` and ``Q``, the ASCKF its square-root factor). The states are appended at an
+        The filter appends them (:meth:`~.process_noise.ProcessNoise._append_states`,
+        held constant). The states are appended at an
         interval's end, after the epoch's update and before its feedback, so the estimate
         is kept and grows by zeros: the epoch's correction is then fed back as every other
         epoch's. (Until session 37 the navigation engine started the whole state from zero
         here, dropping that epoch's correction while P kept the update's shrink:
         ``mvbakf_car``'s heading moved by up to 1.3 deg when that was mended.)
         """
-        n0 = self.n
-        n = n0 + 3
-        self.kf.append_states(np.full(3, var))
-        self.Qc, self._Qc0 = np.r_[self.Qc, np.zeros(3)], np.r_[self._Qc0, np.zeros(3)]
-        self._held = np.r_[self._held, np.ones(3, dtype=bool)]
-        self.n, self.i_sf, self.sf = n, slice(n0, n), np.zeros(3)
-        self._F = self._Phi = None          # the last interval's model had n0 states
+        self.i_sf = self._append_states(np.full(3, var), np.zeros(3))
+        self.sf = np.zeros(3)
 
     def _interval_rate(self, T):
         """Mean body rate (3,) over the interval of ``T`` s (rad/s)."""

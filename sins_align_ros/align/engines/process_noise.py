@@ -77,10 +77,32 @@ class ProcessNoise:
         if self.i_eps is None or not q > 0.0:
             return
         k = np.arange(len(self.Qc))[self.i_eps]
+        self._raise_Qc(k, q)
+        held = np.array(self._held)
+        held[k] = False
+        self._held = held
+
+    def _raise_Qc(self, k, q):
+        """Raise ``Qc`` and the model's own ``_Qc0`` at states ``k`` (indices) to ``q``."""
         for name in ('Qc', '_Qc0'):
             v = np.array(getattr(self, name), dtype=float)
             v[k] = np.maximum(v[k], q)
             setattr(self, name, v)
-        held = np.array(self._held)
-        held[k] = False
-        self._held = held
+
+    def _append_states(self, var, qc):
+        """Grow the state by ``len(var)`` zero-mean states; return their slice.
+
+        ``var`` (k,) their prior variances (uncorrelated), ``qc`` (k,) their process-noise
+        densities (0: held constant). The filter appends them (``kf.append_states``: a
+        covariance filter pads ``x``, ``P`` and ``Q``, the ASCKF its square-root factor), and
+        ``Qc``, ``_Qc0`` and ``_held`` follow; the last interval's model (``_F``, ``_Phi``),
+        made for fewer states, is dropped.
+        """
+        var, qc = np.asarray(var, dtype=float), np.asarray(qc, dtype=float)
+        n0 = self.n
+        self.kf.append_states(var)
+        self.Qc, self._Qc0 = np.r_[self.Qc, qc], np.r_[self._Qc0, qc]
+        self._held = np.r_[self._held, qc <= 0.0]
+        self.n = n0 + len(var)
+        self._F = self._Phi = None
+        return slice(n0, self.n)
