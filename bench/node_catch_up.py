@@ -13,7 +13,11 @@ dropped; a gap in the received stamps says where one was); the longest gap betwe
 outputs and when it fell; the catch-up time, from the window's last sample's due time to
 the first output after it whose latency is back under 20 ms; the worst latency.
 
-Usage: python bench/node_catch_up.py [--rate 1000] [--window 60] [--seconds 80] [--out FILE]
+With ``--scenario ship_underway --filter asckf`` (a navigation-grade ship under way, GNSS
+position and velocity): the GNSS-aided stage runs over the window's samples and its fixes.
+
+Usage: python bench/node_catch_up.py [--rate 1000] [--window 60] [--seconds 80]
+[--scenario NAME --filter NAME] [--out FILE]
 """
 import argparse
 import os
@@ -38,11 +42,11 @@ SCENARIO = 'static_navigation'
 CAUGHT_UP_MS = 20.0
 
 
-def params_yaml(folder, window):
+def params_yaml(folder, window, scenario=SCENARIO, fine_filter='auto'):
     """Write the node's parameter file (ROS layout, the window forced); return its path."""
     from sins_align_ros.eval.scenarios import named
     from sins_align_ros.sim.presets import alignment_params
-    p = alignment_params(named(SCENARIO), 'auto')
+    p = alignment_params(named(scenario), fine_filter)
     p.update(coarse_min_duration=float(window), coarse_duration=float(window))
     lines = ['alignment_node:', '  ros__parameters:']
     lines += [f'    {k}: {v!r}' if isinstance(v, str) else f'    {k}: {v}' for k, v in p.items()]
@@ -56,13 +60,14 @@ def run(args, folder):
     from sins_align_ros.ros.runner import stop_processes
     env = dict(os.environ, PYTHONPATH=str(ROOT), OPENBLAS_NUM_THREADS='1')
     pub = subprocess.Popen([sys.executable, '-c', node_load.PUBLISHER.format(
-        root=str(ROOT), scenario=SCENARIO, seconds=args.seconds, rate=float(args.rate))],
+        root=str(ROOT), scenario=args.scenario, seconds=args.seconds, rate=float(args.rate))],
         stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=env)
     assert pub.stdout.readline().strip() == 'ready'
     listener = node_load.Listener()
     log = open(Path(folder) / 'node.log', 'w')
+    yaml = params_yaml(folder, args.window, args.scenario, args.filter)
     node = subprocess.Popen([sys.executable, '-m', 'sins_align_ros.ros.alignment_node',
-                             '--ros-args', '--params-file', str(params_yaml(folder, args.window))],
+                             '--ros-args', '--params-file', str(yaml)],
                             env=env, stdout=subprocess.DEVNULL, stderr=log)
     time.sleep(5.0)                                   # the node is up and discovered
     pub.stdin.write('go\n')
@@ -98,6 +103,10 @@ def main(argv=None):
     ap.add_argument('--rate', type=float, default=1000.0)
     ap.add_argument('--window', type=float, default=60.0)
     ap.add_argument('--seconds', type=float, default=80.0)
+    ap.add_argument('--scenario', default=SCENARIO,
+                    help='a named scenario (eval.scenarios), e.g. ship_underway: a GNSS-aided '
+                         'stage reprocesses the window and its fixes')
+    ap.add_argument('--filter', default='auto', help='fine_filter')
     ap.add_argument('--out', default=str(ROOT / 'bench' / 'results' / 'node_catch_up.md'))
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as folder:
@@ -105,7 +114,10 @@ def main(argv=None):
     lines = [
         '# The live node catching up at a 1 kHz IMU (issue 46)', '',
         f'Command: `python bench/node_catch_up.py --rate {args.rate:g} --window '
-        f'{args.window:g} --seconds {args.seconds:g}` on {machine_summary()}.', '',
+        f'{args.window:g} --seconds {args.seconds:g}'
+        + ('' if args.scenario == SCENARIO and args.filter == 'auto' else
+           f' --scenario {args.scenario} --filter {args.filter}')
+        + f'` on {machine_summary()}.', '',
         __doc__.split('\n\n', 1)[1].split('\n\nUsage')[0].replace('\n', ' '), '',
         '| IMU published | imu/data received | missing after (s of data) | longest output gap '
         '(s) | at (s of data) | catch-up (s) | worst latency (ms) | median latency (ms) |',

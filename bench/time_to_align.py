@@ -36,7 +36,14 @@ CASES = (
     ('ship_sway', 'auto', 'moored swaying ship (still-base filter)'),
     ('still_nav_35', 'auto', 'still navigation-grade base at 35 deg N'),
     ('still_nav_60', 'auto', 'still navigation-grade base at 60 deg N'),
+    # the GNSS-aided stage run over the window (coarse_reprocess_aided, off by default)
+    ('car_rtk+aided', 'auto', 'car_rtk, the aided stage run over the window'),
+    ('car_consumer+aided', 'auto', 'car_consumer, the aided stage run over the window'),
+    ('ship_underway+aided', 'asckf', 'ship_underway, the aided stage run over the window'),
+    ('seed004_medium+aided', 'vbckf', 'seed004_medium, the aided stage run over the window'),
 )
+#: a case name's suffix -> the parameters it adds
+VARIANTS = {'aided': {'coarse_reprocess_aided': True}}
 FIRST_SEED = 1000
 #: scenarios built here (hard cases of issue 46), by name
 BUILT = {'car_rtk_rest90': lambda: starting_still(scenario('car_rtk'), 60.0),
@@ -66,8 +73,9 @@ def heading_limit(sc, t):
 def one(job):
     """Run a (scenario, filter, seed) job; return its figures."""
     scen, filt, seed = job
+    scen, _, variant = scen.partition('+')
     sc = BUILT[scen]() if scen in BUILT else named(scen, None)
-    run = run_scenario(sc, seed, filt, cached=True)
+    run = run_scenario(sc, seed, filt, cached=True, **VARIANTS.get(variant, {}))
     t = run.out.t - run.data.imu.t[0]
     al = np.asarray(run.out.phase) == 'aligned'
     idx = np.flatnonzero(al)
@@ -94,7 +102,10 @@ def one(job):
 
 #: the fog_mems car recording (../shared/data): what it is run with
 FOG_CASES = (('node defaults', {}), ('fog parameters (auto)', 'FOG'),
-             ('fog parameters, asckf', 'FOG_ASCKF'))
+             ('fog parameters, asckf', 'FOG_ASCKF'),
+             ('node defaults, aided reprocess', {'coarse_reprocess_aided': True}),
+             ('fog parameters (auto), aided reprocess', 'FOG_AIDED'),
+             ('fog parameters, asckf, aided reprocess', 'FOG_ASCKF_AIDED'))
 
 
 def fog_rows():
@@ -113,6 +124,8 @@ def fog_rows():
         return []
     data = SimpleNamespace(imu=rec.imu_like(), gnss=rec.gnss_like())
     named = {'FOG': dict(FOG_PARAMS), 'FOG_ASCKF': {**FOG_PARAMS, 'fine_filter': 'asckf'}}
+    named.update({k + '_AIDED': {**v, 'coarse_reprocess_aided': True}
+                  for k, v in list(named.items())})
     rows = []
     for name, params in FOG_CASES:
         params = named.get(params, params) if isinstance(params, str) else params

@@ -189,7 +189,8 @@ class AlignmentPipeline:
         coarse = self.fine is None
         # queued in coarse alignment too: a fix stamped after the window's end (a replay's
         # block reaches past it) is the fine filter's first epoch, as on the live path
-        self.gnss.position_fix(t, lat_deg, lon_deg, h, pos_var, self.clock.t_last,
+        # (the IMU's stamp: while a stage catches up, the last queued sample's)
+        self.gnss.position_fix(t, lat_deg, lon_deg, h, pos_var, self.t_last,
                                queue=coarse or self.aided)
         if coarse and self.clock.t_last is not None:
             self.gnss.drop_pending(self.clock.t_last)
@@ -231,7 +232,7 @@ class AlignmentPipeline:
         one as its heading; while a fine filter runs, each is a yaw measurement applied when
         the IMU stream passes its stamp (:mod:`.heading`).
         """
-        self.headings.add(t, yaw, var, self.clock.t_last, queue=True)
+        self.headings.add(t, yaw, var, self.t_last, queue=True)
         if self.fine is None and self.clock.t_last is not None:   # as position_fix's
             self.headings.drop_pending(self.clock.t_last)
 
@@ -259,7 +260,7 @@ class AlignmentPipeline:
         own stamp: the returned :class:`Output` has a row per sample finished by this call
         (none while the stage fills, several at once after).
         """
-        dtheta, dv = self.install.take(t, dtheta, dv, self.clock.t_last)
+        dtheta, dv = self.install.take(t, dtheta, dv, self.t_last)
         if self.pre is None:
             return self.process(t, dtheta, dv)
         t, dtheta, dv = self.pre.push(t, dtheta, dv)
@@ -396,6 +397,8 @@ class AlignmentPipeline:
         # fixes that came in during coarse alignment are history, not measurements; those
         # stamped after its last sample are the aided filter's
         self.gnss.drop_pending(t_end if self.aided else math.inf)
+        if self.aided and self.catch_up is not None:     # it runs over the window's fixes
+            self.gnss.requeue(self.clock.t_first, t_end)
         self.headings.drop_pending(t_end)
 
     def _catch_up(self, budget):

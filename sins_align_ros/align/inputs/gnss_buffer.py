@@ -100,6 +100,26 @@ class GnssBuffer:
         while self.pending and self.pending[0][0] <= t + 1e-9:
             self.pending.popleft()
 
+    def requeue(self, t0, t1):
+        """Queue again the fixes of the history stamped in ``(t0, t1]``, ahead of the queue.
+
+        A GNSS-aided stage that starts at the coarse window's first sample (``t0``) runs
+        over the window's fixes (:mod:`~..stages.reprocess`); they were history while the
+        window filled. The queue grows to hold them and what already waits. Returns the
+        number queued.
+        """
+        old = [f for f in self.pending if f[0] > t1 + 1e-9]
+        back = [f for f in self.fixes if t0 + 1e-9 < f[0] <= t1 + 1e-9]
+        self.pending = deque(back + old, maxlen=QUEUE + len(back))
+        return len(back)
+
+    def fix_nearest(self, t):
+        """Return the history's fix stamped nearest ``t``: ``(t, lat, lon, h)`` rad, rad, m."""
+        if not self.fixes:
+            return None
+        f = min(self.fixes, key=lambda f: abs(f[0] - t))
+        return f[:4]
+
     def due(self, t):
         """Tell whether a queued epoch is stamped at or before ``t``."""
         return bool(self.pending) and self.pending[0][0] <= t + 1e-9

@@ -34,6 +34,9 @@ class CoarseResult:
     helps (:func:`~..engines.stationary.restage_helps`; a marine-grade window of 20 s
     leaves arcminutes, whose nonlinear error is nothing, while the floor's 0.5 deg called
     for a restage, which widened a converged heading nine-fold). None: ``sigma``.
+    ``v_n_start`` (3,) or None: the IMU's ENU velocity at the window's first sample (a
+    GNSS-aided window a velocity covers: gnss/vel or the fixes' slope), where a
+    reprocessing stage starts (:mod:`.reprocess`).
     """
 
     C_b_n: np.ndarray
@@ -44,6 +47,7 @@ class CoarseResult:
     info: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
     sigma_linear: np.ndarray = None
+    v_n_start: np.ndarray = None
 
 
 class CoarseWindow:
@@ -405,7 +409,9 @@ def moving_base(window, cfg, noise, position, gnss, t_now, install=None):
         warnings.append(f'{len(drop)} GNSS velocity message(s) of the coarse window left out: '
                         f'the IMU contradicts them by more than {OUTLIER_SIGMAS:g} sigma')
     s_v = 0.5 if v_sig is None else math.hypot(max(2.0 * v_sig, 0.02), s_carry)
-    return CoarseResult(C, sigma, np.array([lat, lon, h]), v_end, s_v, info, warnings), info, None
+    v_start = None if V is None else (V.mean(axis=0) if steady else V[0])
+    return CoarseResult(C, sigma, np.array([lat, lon, h]), v_end, s_v, info, warnings,
+                        v_n_start=v_start), info, None
 
 
 def velocity_outliers(window, lat, h, gnss, V, v_sig, arm_b=None):

@@ -11,8 +11,9 @@ what runs next, without changing the pipeline:
 4. the coarse attitude (:mod:`.coarse_stage`), its heading replaced by a recent external
    one (:mod:`.heading`);
 5. the engine and the fine stage (:mod:`.factory`, :mod:`.fine_stage`);
-6. a still-base stage starts at the window's first sample, to run over its samples
-   (:mod:`.reprocess`; the pipeline runs the :class:`~.reprocess.CatchUp`).
+6. the stage starts at the window's first sample, to run over its samples (and, GNSS-aided,
+   its fixes: the pipeline queues them again) (:mod:`.reprocess`; the pipeline runs the
+   :class:`~.reprocess.CatchUp`).
 
 :class:`~.pipeline.AlignmentPipeline` applies the :class:`FineStart` it returns, or
 restarts from coarse with the reason.
@@ -111,7 +112,13 @@ def hand_over(window, cfg, noise, clock, gnss, headings, install):
     replay = reprocess.applies(cfg, aided, heading_measured, headings)
     C_window = res.C_b_n
     if replay:                      # the stage starts where the window began
-        res = reprocess.start_of_window(res, window, noise, coarse_info['method'])
+        if aided:
+            res0 = reprocess.aided_start(res, window, gnss, cfg, install)
+            replay = res0 is not None
+            res = res if res0 is None else res0
+        else:
+            res = reprocess.start_of_window(res, window, noise, coarse_info['method'])
+    if replay:
         clock.t_last = clock.t_first
     fine, engine_warnings = fine_stage_for(res, cfg, noise, bool(gnss.vels), heading_known,
                                            heading_measured, clock, install, headings)
@@ -119,7 +126,7 @@ def hand_over(window, cfg, noise, clock, gnss, headings, install):
     if check is not None:
         fine.mounting_doubt = check.mounting_doubt
     if replay:
-        if heading_known:
+        if heading_known and not aided:
             sigma = reprocess.window_heading(fine, C_window, window, noise, position[0],
                                              coarse_info['method'],
                                              coarse_info['motion_detected'])

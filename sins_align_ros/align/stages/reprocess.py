@@ -1,4 +1,4 @@
-"""Store and reprocess: a still-base fine stage starts at the coarse window's first sample.
+"""Store and reprocess: the fine stage starts at the coarse window's first sample.
 
 Issue 46. The coarse window's samples used to be thrown away once the coarse attitude was
 found: the fine filter began at the window's end and had to gather the same information
@@ -54,18 +54,40 @@ were); the pipeline says ``coarse`` and its status ``catching_up``. Once the que
 over, the stage's rows are the live ones again. A call that brings more samples than the
 window (a replay's block) catches up at once, as before.
 
-Where it applies (:func:`applies`): a still-base filter (the seed 002 family) with no
-external heading in play (an external heading set the coarse heading from a message the
-window also holds; applying it again as a measurement would count it twice). The
-GNSS-aided filters start at the window's end as before: their reprocessing would move the
-position and velocity back over a base that drove (not built; docs/design.md).
+**GNSS-aided filters** (:func:`aided_start`, with ``coarse_reprocess_aided``, off by default:
+below) start there too: the moving-base fit turned
+back to the window's start, the window's first GNSS velocity and the fix nearest the start
+moved to it (antenna to IMU); the pipeline queues the window's fixes again
+(:meth:`~..inputs.gnss_buffer.GnssBuffer.requeue`), and the filter takes them as the
+stored samples pass their stamps, as it takes live ones. The prior is the coarse sigma,
+three times the window's own 1-sigma in each term (the share rule above would put a MEMS
+heading from the GNSS track at its 30-deg cap). Measured (bench/results/time_to_align.md,
+session 45): the navigation-grade ship under way is `aligned` at 70 s instead of 136 s,
+its heading inside 1 deg for good from 81 s instead of 184 s; the MEMS car with RTK 5.4 s
+after it starts to drive instead of 17 s. Not where no velocity covers the window (neither
+gnss/vel messages nor the seven fixes a slope needs,
+:meth:`~..inputs.gnss_buffer.GnssBuffer.velocity_over`) or with ``use_gnss_position``
+off: that stage starts at the window's end as before.
+**Why off by default** (bench/results/integrity_aided_reprocess.md, session 45): over the
+integrity matrix's GNSS-aided cells (told right and the defaults), 10 cells of 168 that
+passed fail with it: seed 003's car at tactical grade (kf, ukf, auto, vbakf, mvbakf; the
+heading 13-29 % of rows outside 3 sigma in seeds 1002 and 1008) and at navigation grade
+(mvbakf), and mvbakf on the tactical flight (east tilt, 7 %). On the car the heading error
+after the drive's manoeuvres is the same with or without it (-0.4 deg at 170 s, seed 1002,
+3.4 sigma with it, 2.7 sigma without): the window's information narrows a heading sigma
+that was already as narrow as the model allows, so a model error the matrix had only
+grazed shows. Two seed-004 USV cells that failed pass with it.
+
+Where it applies (:func:`applies`): no external heading in play (an external heading set
+the coarse heading from a message the window also holds; applying it again as a
+measurement would count it twice).
 """
 from dataclasses import replace
 
 import numpy as np
 
 from ...models.stationary import sees_earth_rate
-from ...nav import coarse
+from ...nav import coarse, earth
 from ..engines import gyrocompass
 from ..inputs.heading import LINEAR_MAX, yaw_of
 from .coarse_stage import coarse_sigma, seen_noise
@@ -77,12 +99,13 @@ PRIOR_SHARE = 0.1
 def applies(cfg, aided, heading_measured, headings):
     """Tell whether the fine stage reprocesses the window (module docstring).
 
-    ``cfg``: the parameters (``coarse_reprocess``); ``aided``: the fine filter is
-    GNSS-aided; ``heading_measured``: an external heading set the coarse heading;
-    ``headings``: the :class:`~..inputs.heading.HeadingBuffer` (any heading waiting).
+    ``cfg``: the parameters (``coarse_reprocess``, and for a GNSS-aided filter, ``aided``,
+    ``coarse_reprocess_aided``); ``heading_measured``: an external heading set the coarse
+    heading; ``headings``: the :class:`~..inputs.heading.HeadingBuffer` (any heading
+    waiting). A GNSS-aided stage also needs its start (:func:`aided_start`).
     """
-    return (cfg['coarse_reprocess'] and not aided and not heading_measured
-            and not headings.pending)
+    return bool(cfg['coarse_reprocess'] and (not aided or cfg['coarse_reprocess_aided'])
+                and not heading_measured and not headings.pending)
 
 
 def prior_sigma(noise, T, lat, moving, sigma):
@@ -113,6 +136,47 @@ def start_of_window(res, window, noise, method):
     moving = bool(res.info.get('motion_detected', False))
     return replace(res, C_b_n=C,
                    sigma=prior_sigma(noise, float(np.sum(dts)), lat, moving, res.sigma))
+
+
+def aided_start(res, window, gnss, cfg, install=None):
+    """Return the moving-base coarse result ``res`` moved to the window's start, or None.
+
+    ``window``: the coarse window's arrays; ``gnss`` the pipeline's
+    :class:`~..inputs.gnss_buffer.GnssBuffer`; ``install`` the
+    :class:`~.installation.Installation` (its lever arm). The attitude is the fit turned
+    back by the gyros, the Earth and the frame's turn over the ground
+    (:func:`~sins_align_ros.nav.coarse.attitude_at_start`, the transport rate of the mean
+    of the start and end velocities: 3.4' of tilt per axis over 60 s at 150 m/s, which
+    put seed 001's tactical flight 3 sigma off in east tilt); the velocity the window's GNSS
+    velocity at its first sample (``res.v_n_start``); the position the fix nearest the
+    start, moved to it with that velocity and from the antenna to the IMU. The prior is
+    the coarse sigma, which is three times the 1-sigma the window's data give in each of
+    its terms (:func:`~.coarse_stage.coarse_sigma`, the GNSS velocity's term of
+    :func:`~.coarse_stage.moving_base`), so it claims at most a ninth of the information
+    the filter then takes from the same samples (the module docstring); a heading from
+    the GNSS track keeps the track's sigma (``track_heading_sigma_deg``: the course, not
+    the IMU's samples; :func:`prior_sigma`'s share of the window would put a MEMS heading
+    at its 30-deg cap, and the real fog_mems car's asckf heading sigma ended at 16 deg
+    instead of 6). None (the stage starts at the window's end): no velocity (gnss/vel or
+    from the fixes) covered the window, no fix, or ``use_gnss_position`` off.
+    """
+    if res.v_n_start is None or not cfg['use_gnss_position']:
+        return None
+    tt, dth, dvv, dts = window
+    t0 = float(tt[0] - dts[0])
+    fix = gnss.fix_nearest(t0)
+    if fix is None:
+        return None
+    t_f, lat, lon, h = fix
+    v0 = np.asarray(res.v_n_start, dtype=float)
+    w_en = earth.w_en_n(lat, h, 0.5 * (v0 + np.asarray(res.v_n, dtype=float)))
+    C = coarse.attitude_at_start(res.C_b_n, dth, dts, lat, w_en)
+    arm_n = np.zeros(3) if install is None or install.no_arm else C @ install.l_v
+    R_M, R_N = earth.radii(lat)
+    d = v0 * (t0 - t_f) - arm_n
+    position = np.array([lat + d[1] / (R_M + h), lon + d[0] / ((R_N + h) * np.cos(lat)),
+                         h + d[2]])
+    return replace(res, C_b_n=C, v_n=v0, position=position)
 
 
 def gyrocompass_plan(noise, lat, T, moving=False):
