@@ -14,7 +14,8 @@ import numpy as np
 from sins_align_ros.align import params as prm
 from sins_align_ros.align.inputs.gnss_fix import GnssFix
 from sins_align_ros.align.stages.gnss_noise_check import (JITTER_CHUNK_S, JITTER_COUNTED,
-                                                          _velocity_jitter, gm_shares,
+                                                          _velocity_jitter, ar1_product,
+                                                          gm_shares,
                                                           kept_share, velocity_jitter)
 from sins_align_ros.align.engines.moving import MovingBaseAlignment
 from sins_align_ros.align.stages.self_check import SelfCheck
@@ -203,3 +204,19 @@ def test_the_kept_share_is_the_gauss_markov_expectation():
     assert abs(np.mean(lag) - lag1) < 4 * np.std(lag) / math.sqrt(draws)
     assert gm_shares(0.0, Q)[0] == m - 3
     assert kept_share(Q, -1.0, 0.99) == m - 3        # white residuals: the white share exactly
+
+
+def test_the_ar1_product_is_the_dense_one():
+    """gm_shares' ``C Q`` by two first-order recursions (ar1_product) equals the dense
+    product with ``C_ij = phi^|i - j|`` to round-off, for a basis of a quadratic fit and a
+    random one (seeded), at a correlation near white and one near a random walk."""
+    m = 300
+    t = np.arange(m) * 0.01
+    rng = np.random.default_rng(46)
+    for Q in (np.linalg.qr(np.column_stack([np.ones(m), t, t * t]))[0],
+              rng.standard_normal((m, 4))):
+        for phi in (0.1, 0.999):
+            i = np.arange(m)
+            C = phi ** np.abs(np.subtract.outer(i, i))
+            np.testing.assert_allclose(ar1_product(phi, Q), C @ Q, rtol=1e-9,
+                                       atol=1e-9 * np.abs(C @ Q).max())
