@@ -93,7 +93,7 @@ def one(job):
     e_up = np.abs(attitude_errors(run.out, run.truth_euler, np.arange(len(t)))[:, 2])
 
     def good_from(band):
-        """The time from which the heading stays inside ``band`` (rad) and its 3 sigma."""
+        """Return the time from which the heading stays inside ``band`` (rad) and 3 sigma."""
         bad = np.flatnonzero(~((e_up <= band) & (e_up <= 3.0 * run.out.sigma[:, 2])))
         return float(t[bad[-1] + 1]) if len(bad) and bad[-1] + 1 < len(t) else (
             float(t[0]) if not len(bad) else np.nan)

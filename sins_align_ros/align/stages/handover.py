@@ -11,9 +11,9 @@ what runs next, without changing the pipeline:
 4. the coarse attitude (:mod:`.coarse_stage`), its heading replaced by a recent external
    one (:mod:`.heading`);
 5. the engine and the fine stage (:mod:`.factory`, :mod:`.fine_stage`);
-6. the stage starts at the window's first sample, to run over its samples (and, GNSS-aided,
-   its fixes: the pipeline queues them again) (:mod:`.reprocess`; the pipeline runs the
-   :class:`~.reprocess.CatchUp`).
+6. the stage starts at the window's first sample, to run over its samples (a GNSS-aided
+   one only with ``coarse_reprocess_aided``, and over the fixes too, which the pipeline
+   queues again) (:mod:`.reprocess`; the pipeline runs the :class:`~.reprocess.CatchUp`).
 
 :class:`~.pipeline.AlignmentPipeline` applies the :class:`FineStart` it returns, or
 restarts from coarse with the reason.
