@@ -172,10 +172,8 @@ def aided_start(res, window, gnss, cfg, install=None):
     w_en = earth.w_en_n(lat, h, 0.5 * (v0 + np.asarray(res.v_n, dtype=float)))
     C = coarse.attitude_at_start(res.C_b_n, dth, dts, lat, w_en)
     arm_n = np.zeros(3) if install is None or install.no_arm else C @ install.l_v
-    R_M, R_N = earth.radii(lat)
-    d = v0 * (t0 - t_f) - arm_n
-    position = np.array([lat + d[1] / (R_M + h), lon + d[0] / ((R_N + h) * np.cos(lat)),
-                         h + d[2]])
+    # the ENU offset (m) from the fix to the IMU at the start, as a geodetic change
+    position = np.array([lat, lon, h]) + earth.position_rate(lat, h, v0 * (t0 - t_f) - arm_n)
     return replace(res, C_b_n=C, v_n=v0, position=position)
 
 
