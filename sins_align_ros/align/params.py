@@ -149,6 +149,10 @@ ALIGNMENT_PARAMS = (
           'message reports no usable yaw variance, deg', 0.001, 90.0),
     Param('use_gnss_position', True, 'take latitude/height from a valid gnss/fix when one '
           'arrives before fine alignment starts'),
+    Param('imu_noise_file', '', 'IMU noise file in SI units (Kalibr imu.yaml, OpenVINS '
+          'kalibr_imu_chain.yaml, VINS-Fusion config): sets gyro_arw_dpsh, '
+          'gyro_bias_instability_dph, accel_vrw_ug_rthz and accel_bias_ug where they are not '
+          'given as parameters (docs/imu_noise_file.md); read at start-up', read_only=True),
     Param('gyro_bias_dph', 0.01, 'gyro constant bias, 1 sigma, deg/h (filter model)',
           0.0, 36000.0),
     Param('gyro_arw_dpsh', 0.001, 'gyro angle random walk, deg/sqrt(h) (filter model)',

@@ -21,6 +21,7 @@ import numpy as np
 
 from ..align import AlignmentSession, Output
 from ..align import params as prm
+from ..io import imu_noise_file
 from ..io.bag import BagError, read_bag
 from ..io.psins import PsinsFormatError, read_psins
 from ..io.report import plot_report, truth_euler_at
@@ -58,6 +59,10 @@ def _parser():
 def load_parameters(params_file, sets, log=lambda m: None):
     """Alignment parameter dict from a YAML file and ``name=value`` overrides, validated.
 
+    An ``imu_noise_file`` among them sets the noise parameters it gives where neither the
+    file nor ``--set`` names them (:mod:`~sins_align_ros.io.imu_noise_file`; said through
+    ``log``).
+
     Parameters of the node's ROS interface (``odom_frame_id``, ...) that a shared
     preset may hold are checked and left out (said through ``log``).
     """
@@ -72,7 +77,15 @@ def load_parameters(params_file, sets, log=lambda m: None):
     values, node_only = prm.split_node_params(values)
     if node_only:
         log(f'node-only parameters not used by the replay: {", ".join(sorted(node_only))}')
-    return values
+    values = prm.validate(values)
+    filled, said = imu_noise_file.apply(values, set(values), prm.defaults())
+    if not said:
+        return values
+    log(said)
+    try:
+        return prm.validate(filled)
+    except ValueError as exc:
+        raise ValueError(f'{values["imu_noise_file"]} gives a value refused: {exc}') from None
 
 
 def replay_psins(path, values, log, duration=None):

@@ -221,7 +221,7 @@ class AlignmentShell:
         arr.status = [self.report.status(
             f'{self.get_fully_qualified_name()}: alignment', self.p['imu_frame_id'] or 'imu',
             self.session, s, state, self.p, self._imu_age(), self.errors, self.counts,
-            self.rows.odom)]
+            self.rows.odom, self.params.noise_summary)]
         arr.header.stamp = self.get_clock().now().to_msg()
         self.pub_diag.publish(arr)
 

@@ -204,17 +204,21 @@ class PeriodReport:
         self.notes.add([text])
         self.last_restart = text
 
-    def status(self, name, hardware_id, session, s, state, p, imu_age, errors, counts, odom):
+    def status(self, name, hardware_id, session, s, state, p, imu_age, errors, counts, odom,
+               noise_file=''):
         """Return the period's DiagnosticStatus (:func:`alignment_status`) and start a new one.
 
         ``session`` the alignment session (its read-outs), ``s`` its status, ``state`` the
         typed state published, ``p`` the node's parameter values, ``imu_age`` seconds since
         the last IMU message (None before the first), ``errors`` the node's
         :class:`CallbackErrors`, ``counts`` its message counts, ``odom`` the ``~/odom``
-        origin (:class:`~.odometry.OdometryFrame`).
+        origin (:class:`~.odometry.OdometryFrame`), ``noise_file`` what the IMU noise file
+        said and set (the ``imu_noise_file`` KeyValue; none without a file).
         """
         self.notes.read(session.warnings)
         values = input_values(session, counts, odom)
+        if noise_file:
+            values['imu_noise_file'] = noise_file
         values.update(callback_error_count=errors.count, notes='; '.join(session.warnings),
                       last_restart=self.last_restart)
         st = alignment_status(name, hardware_id, s, state, p['diagnostic_period'],
