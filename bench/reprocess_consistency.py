@@ -1,4 +1,4 @@
-"""Is the GNSS-aided reprocessing of the coarse window as consistent as the default flow?
+"""Whether the GNSS-aided reprocessing of the coarse window is as consistent as the default flow.
 
 Issue 46: the integrity matrix's 10 runs per cell found the aided reprocessing
 (``coarse_reprocess_aided``) silent-wrong on a few cells (seed 003's tactical car, seeds
