@@ -3,7 +3,9 @@
 The README is the entry page (at most 15,000 characters); the reference pages are under
 ``docs/``. Generated blocks (``<!-- tag -->`` ... ``<!-- /...`` markers) live on the page
 that documents them: the sensor grades and the simulator's parameters on
-``docs/simulator_node.md``, the alignment node's parameters on ``docs/alignment_node.md``.
+``docs/simulator_node.md``, the alignment node's parameters on ``docs/parameters.md`` (the site,
+the phases' flow, the installation, the IMU model) and ``docs/parameters_tuning.md`` (the rest,
+from :data:`TUNING_FROM` on). No docs page is longer than :data:`PAGE_MAX_BYTES`.
 """
 import re
 from pathlib import Path
@@ -22,8 +24,13 @@ README_MAX_CHARS = 15000
 BLOCK_PAGES = {
     'grades': DOCS / 'simulator_node.md',
     'params:simulator_node': DOCS / 'simulator_node.md',
-    'params:alignment_node': DOCS / 'alignment_node.md',
+    'params:alignment_node': DOCS / 'parameters.md',
+    'params:alignment_node:tuning': DOCS / 'parameters_tuning.md',
 }
+#: the alignment node's first parameter on docs/parameters_tuning.md
+TUNING_FROM = 'zero_velocity_sigma'
+#: the longest a docs page may be (issue 47: pages a reader takes in at once)
+PAGE_MAX_BYTES = 15000
 
 
 def _block(tag):
@@ -65,9 +72,15 @@ def test_readme_parameter_tables_match_declarations(node):
         from sins_align_ros.ros.simulator_node import PARAMS
     else:
         from sins_align_ros.ros.alignment_node import PARAMS
-    page = BLOCK_PAGES[f'params:{node}'].relative_to(ROOT)
-    assert _block(f'params:{node}') == markdown_table(PARAMS), (
-        f'{page} parameter table of {node} is stale; paste markdown_table({node}.PARAMS)')
+    parts = {f'params:{node}': PARAMS}
+    if node == 'alignment_node':
+        k = [p.name for p in PARAMS].index(TUNING_FROM)
+        parts = {f'params:{node}': PARAMS[:k], f'params:{node}:tuning': PARAMS[k:]}
+    for tag, params in parts.items():
+        page = BLOCK_PAGES[tag].relative_to(ROOT)
+        assert _block(tag) == markdown_table(params), (
+            f'{page} parameter table <!-- {tag} --> of {node} is stale; paste '
+            f'markdown_table of its parameters (test_readme.py says which)')
 
 
 def test_readme_commands_exist():
@@ -81,6 +94,20 @@ def test_readme_is_short():
     size = len((ROOT / 'README.md').read_bytes())        # what `wc -c` counts
     assert size <= README_MAX_CHARS, (
         f'README.md has {size} characters (limit {README_MAX_CHARS}): move detail to docs/')
+
+
+#: pages not split yet (issue 47): each must still be too long, so the list only shrinks
+NOT_SPLIT_YET = ('design.md', 'filters.md', 'results.md')
+
+
+@pytest.mark.parametrize('page', sorted(DOCS.glob('*.md')), ids=lambda p: p.name)
+def test_docs_pages_are_short(page):
+    size = len(page.read_bytes())
+    if page.name in NOT_SPLIT_YET:
+        assert size > PAGE_MAX_BYTES, f'docs/{page.name} is short now: take it off NOT_SPLIT_YET'
+        return
+    assert size <= PAGE_MAX_BYTES, (
+        f'docs/{page.name} has {size} bytes (limit {PAGE_MAX_BYTES}): split it')
 
 
 def _slug(heading):

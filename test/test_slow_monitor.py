@@ -392,7 +392,7 @@ def test_no_alarm_when_the_filter_is_told_the_bias(drift):
 def test_honest_ship_and_rtk_car_runs_raise_no_alarm(name, fine_filter, duration):
     """Told their sensors: legs are judged (the ship's heading sways less than the straightness
     bound; the car drives its route) and none disagrees (30 runs of 10 scenarios x filters, 3
-    seeds each, showed none either; docs/alignment_node.md)."""
+    seeds each, showed none either; docs/checks.md)."""
     from sins_align_ros.eval.run import run_scenario
     run = run_scenario(name, 7, fine_filter, duration=duration)
     mon = run.pipeline.fine.slow

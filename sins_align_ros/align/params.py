@@ -129,13 +129,13 @@ ALIGNMENT_PARAMS = (
     Param('initial_latitude_deg', math.nan, 'latitude used without a GNSS fix, deg; .nan: not '
           'set: at rest the gyros estimate it where they see the Earth rate clearly (a '
           'navigation-grade IMU), else it is unknown, 0 is used and the heading is published '
-          'as unknown (docs/alignment_node.md)', -89.0, 89.0, unset=True),
+          'as unknown (docs/parameters.md)', -89.0, 89.0, unset=True),
     Param('initial_longitude_deg', 0.0, 'longitude used without a GNSS fix, deg',
           -180.0, 180.0),
     Param('initial_height_m', 0.0, 'height used without a GNSS fix, m', -1000.0, 50000.0),
     Param('gnss_lever_arm_m', (0.0, 0.0, 0.0), 'GNSS antenna position relative to the IMU '
           'in the vehicle frame (FLU: forward, left, up), [x, y, z] m: every GNSS position and '
-          'velocity is moved to the IMU (docs/alignment_node.md, installation)', -500.0, 500.0),
+          'velocity is moved to the IMU (docs/installation.md)', -500.0, 500.0),
     Param('imu_mounting_rpy_deg', (0.0, 0.0, 0.0), 'rotation of the vehicle frame to the '
           'IMU frame (the base_link -> imu_link transform), [roll, pitch, yaw] deg, REP-103 '
           '(static_transform_publisher takes them as yaw, pitch, roll): the IMU data are '
@@ -204,7 +204,7 @@ ALIGNMENT_PARAMS = (
     Param('mounting_check_max_tilt_deg', 45.0, 'self-check: a vehicle frame tilted more '
           'than this in the coarse window (its mean specific force) is taken for an IMU '
           'mounted rotated with imu_mounting_rpy_deg untold: the attitude is published as '
-          'unknown and never aligned (docs/alignment_node.md, installation); 180 turns the '
+          'unknown and never aligned (docs/installation.md); 180 turns the '
           'check off, deg', 5.0, 180.0),
     Param('mounting_check_max_sideslip_deg', 45.0, 'self-check under way: a median angle of '
           'the GNSS velocity from the vehicle\'s forward axis beyond this (GNSS epochs above '
@@ -214,7 +214,7 @@ ALIGNMENT_PARAMS = (
     Param('slow_monitor_legs', 3, 'slow-error monitor of the GNSS-aided filters: this many '
           'consecutive straight legs whose GNSS course lies more than slow_monitor_sigmas from '
           'the published heading leave aligned and inflate the heading, tilt and bias '
-          'covariance; as many agreeing legs end it (docs/alignment_node.md); 0 turns it off',
+          'covariance; as many agreeing legs end it (docs/checks.md); 0 turns it off',
           0, 100),
     Param('slow_monitor_sigmas', 3.0, 'slow-error monitor: a straight leg disagrees when its '
           'course minus the published heading exceeds this many combined sigmas (heading, '
@@ -226,7 +226,7 @@ ALIGNMENT_PARAMS = (
           'certain than the GNSS course of a straight leg (5-30 s), that course is given to '
           'the filter as a heading fix (the vehicle moves along its forward axis); not on legs '
           'with GNSS velocity above track_min_speed_mps (the track heading\'s); off for a '
-          'vehicle that crabs or moves sideways (docs/alignment_node.md)'),
+          'vehicle that crabs or moves sideways (docs/checks.md)'),
     Param('course_heading_sideslip_deg', 5.0, 'course heading aid: the sideslip (crab) '
           '1-sigma of a straight leg added to the course\'s own, deg: a car 1, a skid-steer '
           'robot a few; legs whose courses disagree beyond it turn the aid off', 0.0, 90.0),
@@ -239,7 +239,7 @@ ALIGNMENT_PARAMS = (
           'first-order Gauss-Markov sigma per ENU axis beside the white noise (a consumer '
           'receiver: about 1.5), m; kf and ukf carry it as three states, the other moving-base '
           'filters add its white equivalent over the fix interval to each fix\'s position '
-          'noise (docs/alignment_node.md); 0: '
+          'noise (docs/diagnostics.md); 0: '
           'none assumed, until the innovations show one over tens of seconds (then '
           'widened and said)', 0.0, 100.0),
     Param('gnss_position_markov_tau_s', 60.0, 'correlation time of that Gauss-Markov error '

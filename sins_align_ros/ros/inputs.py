@@ -11,7 +11,7 @@
 * ``gnss/fix`` (sensor_msgs/NavSatFix), ``gnss/vel`` (geometry_msgs/
   TwistWithCovarianceStamped, ENU; used by the GNSS-aided filters) and ``heading/in``
   (sensor_msgs/Imu: an external heading, the yaw of its orientation and
-  ``orientation_covariance[8]``; docs/alignment_node.md): best effort, depth 50; each
+  ``orientation_covariance[8]``; docs/installation.md): best effort, depth 50; each
   message becomes the arguments of the session's entry (:func:`fix_args`,
   :func:`velocity_args`, :func:`heading_args`).
 
