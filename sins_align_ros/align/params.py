@@ -109,19 +109,19 @@ ALIGNMENT_PARAMS = (
     Param('coarse_min_duration', 20.0, 'shortest coarse window, which the sensor self-check '
           'reads: a still base\'s window ends once it has lasted this long and its attitude, '
           'with the noise the samples show, is good enough for the fine filter '
-          '(docs/filters.md); a rested base that starts to move needs this much rest for '
+          '(docs/coarse.md); a rested base that starts to move needs this much rest for '
           'coarse_motion_s; at least coarse_duration: the window lasts coarse_duration, s',
           1.0, 3600.0),
     Param('coarse_reprocess', True, 'a still-base fine filter starts at the coarse window\'s '
           'first sample and runs over its stored samples before the live ones, with a prior '
-          'that does not count them twice (docs/filters.md); false: it starts at the '
+          'that does not count them twice (docs/coarse.md); false: it starts at the '
           'window\'s end'),
     Param('coarse_reprocess_aided', False, 'with coarse_reprocess, a GNSS-aided fine filter '
           'also starts at the window\'s first sample and runs over its samples and fixes: '
           'aligned sooner (a navigation-grade ship under way 70 s instead of 136 s, a MEMS car '
           '5 s after it starts to drive instead of 17 s), but off by default: it fails '
           'integrity cells of tactical and navigation-grade cars and a flight '
-          '(docs/filters.md)'),
+          '(docs/coarse.md)'),
     Param('coarse_motion_s', 5.0, 'a coarse window that held coarse_min_duration of rest ends '
           'this long '
           'after GNSS shows the base start moving (the moving-base coarse alignment takes '
@@ -267,7 +267,7 @@ ALIGNMENT_PARAMS = (
     Param('asckf_adaptive', True, 'asckf: Sage-Husa measurement-noise estimation with the '
           'divergence test (seed 000 eq. 39, 20)'),
     Param('asckf_adapt_q', False, 'asckf: estimate the process noise Q as well (seed 000 '
-          'eq. 39; off by default, see docs/filters.md)'),
+          'eq. 39; off by default, see docs/filters_moving.md)'),
     Param('asckf_forgetting', 0.97, 'asckf: Sage-Husa forgetting factor b', 0.5, 0.9999),
     Param('vb_forgetting', 0.98, 'vbckf/vbch: forgetting factor rho of the variational-Bayes '
           'R estimate (memory about 1 / (1 - rho) GNSS epochs; seed 004 eq. 24)', 0.5, 1.0),
@@ -275,7 +275,7 @@ ALIGNMENT_PARAMS = (
           '(seed 004: N = 20)', 1, 100),
     Param('vbch_c', 100.0, 'vbch: constant C of the adaptive robust factor gamma (seed 004 '
           'eq. 15; the seed\'s 1.5 lets the heading variance grow every epoch, see '
-          'docs/filters.md)',
+          'docs/filters_severe_sea.md)',
           0.0, 1e6),
     Param('vb_outlier_dof', 5.0, 'vbckf/vbch: degrees of freedom of the Student-t scale that '
           'down-weights outlier epochs (0: off, the seed\'s plain inverse-Gamma R)',
@@ -291,7 +291,7 @@ ALIGNMENT_PARAMS = (
           'P(k|k-1) (seed 001 eq. 9-10; its Fig. 2 uses 6)', 0.0, 1e6),
     Param('mvbakf_moment', 'mean', 'mvbakf: posterior moment of P(k|k-1) and R used in the '
           'update: mean (seed 001 eq. 24, 30 as printed) or inverse (E[P^-1]^-1, the '
-          'variational derivation\'s; see docs/filters.md)', choices=('mean', 'inverse')),
+          'variational derivation\'s; see docs/filters_navigation.md)', choices=('mean', 'inverse')),
     Param('nav_q_scale', 1.0, 'kf/vbakf/mvbakf/ukf: factor on the process noise Q the '
           'sensor parameters give (seed 001 runs its filters with 9)', 0.01, 1e4),
     Param('accel_bias_tau_s', 3600.0, 'kf/vbakf/mvbakf/ukf: correlation time of the '

@@ -74,7 +74,7 @@ class PriorShaping:
         At rest a level accelerometer bias and a tilt are one (seed 002 eq. 15); a filter
         that estimates the bias takes its wandering unknown heading for a rotation of the
         base and "separates" them wrongly (still MEMS IMU: north tilt 24-32' RMS against
-        the bias's 6'; docs/filters.md). The two states' prior is scaled to
+        the bias's 6'; docs/coarse.md). The two states' prior is scaled to
         :data:`ACCEL_BIAS_HOLD` and their process noise zeroed, which leaves the bias in
         the tilt, published at no less than ``(a / g)^2`` (``FineStage.tilt_bound``).
         Call before the first epoch.
