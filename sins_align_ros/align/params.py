@@ -291,7 +291,8 @@ ALIGNMENT_PARAMS = (
           'P(k|k-1) (seed 001 eq. 9-10; its Fig. 2 uses 6)', 0.0, 1e6),
     Param('mvbakf_moment', 'mean', 'mvbakf: posterior moment of P(k|k-1) and R used in the '
           'update: mean (seed 001 eq. 24, 30 as printed) or inverse (E[P^-1]^-1, the '
-          'variational derivation\'s; see docs/filters_navigation.md)', choices=('mean', 'inverse')),
+          'variational derivation\'s; see docs/filters_navigation.md)',
+          choices=('mean', 'inverse')),
     Param('nav_q_scale', 1.0, 'kf/vbakf/mvbakf/ukf: factor on the process noise Q the '
           'sensor parameters give (seed 001 runs its filters with 9)', 0.01, 1e4),
     Param('accel_bias_tau_s', 3600.0, 'kf/vbakf/mvbakf/ukf: correlation time of the '
