@@ -96,16 +96,9 @@ def test_readme_is_short():
         f'README.md has {size} characters (limit {README_MAX_CHARS}): move detail to docs/')
 
 
-#: pages not split yet (issue 47): each must still be too long, so the list only shrinks
-NOT_SPLIT_YET = ('design.md', 'results.md')
-
-
 @pytest.mark.parametrize('page', sorted(DOCS.glob('*.md')), ids=lambda p: p.name)
 def test_docs_pages_are_short(page):
     size = len(page.read_bytes())
-    if page.name in NOT_SPLIT_YET:
-        assert size > PAGE_MAX_BYTES, f'docs/{page.name} is short now: take it off NOT_SPLIT_YET'
-        return
     assert size <= PAGE_MAX_BYTES, (
         f'docs/{page.name} has {size} bytes (limit {PAGE_MAX_BYTES}): split it')
 

@@ -1,7 +1,7 @@
 """The alignment layer's front door (no ROS imports).
 
 ros/, cli/ and eval/ use these names, and the parameter table in :mod:`.params`; the rooms
-behind them (``inputs``, ``engines``, ``stages``, ``forecast``: docs/design.md#layout) are
+behind them (``inputs``, ``engines``, ``stages``, ``forecast``: docs/layout.md) are
 not theirs to import, which ``.importlinter``'s contract "Only the front door of align"
 checks. The names load on first use (PEP 562), so that importing one input module does not
 load every engine through this file.

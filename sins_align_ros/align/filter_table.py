@@ -9,7 +9,7 @@ From it come the parameters' choices and families (:mod:`.params`), the factory'
 (test/test_registry.py checks it against :func:`markdown_table`).
 
 Plain data at the bottom of align, so that :mod:`.params` can read it without loading an
-engine (docs/design.md#layout). A new fine filter is one row here plus one engine class;
+engine (docs/layout.md). A new fine filter is one row here plus one engine class;
 a row added at run time (:func:`add`) is in every name list at once, since the lists are
 views (:class:`Names`), not copies.
 """

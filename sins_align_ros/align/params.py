@@ -200,7 +200,7 @@ ALIGNMENT_PARAMS = (
           'this, left when it exceeds 1.2 times it, deg (heading_ready in the diagnostics)',
           0.001, 180.0),
     Param('sensor_self_check', True, 'check the configured sensor model against the coarse '
-          'window and widen it where the data contradict it (docs/design.md)'),
+          'window and widen it where the data contradict it (docs/checks.md)'),
     Param('mounting_check_max_tilt_deg', 45.0, 'self-check: a vehicle frame tilted more '
           'than this in the coarse window (its mean specific force) is taken for an IMU '
           'mounted rotated with imu_mounting_rpy_deg untold: the attitude is published as '

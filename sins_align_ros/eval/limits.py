@@ -1,6 +1,6 @@
 """Accuracy limits of stationary alignment for a simulated scenario.
 
-As docs/design.md's "What aligned well means" defines them.
+As docs/contracts.md's "What aligned well means" defines them.
 
 For a still base the achievable accuracy is set by the sensors (seed 002 eq. 15):
 east tilt ``phi_E ~ a_N/g``, north tilt ``phi_N ~ -a_E/g``, heading

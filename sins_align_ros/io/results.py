@@ -1,4 +1,4 @@
-"""The result CSV of the replay tool (docs/design.md and ../shared/DESIGN.md: a contract).
+"""The result CSV of the replay tool (docs/contracts.md and ../shared/DESIGN.md: a contract).
 
 Columns: ``t,qx,qy,qz,qw,roll_deg,pitch_deg,yaw_deg,sigma_roll_deg,sigma_pitch_deg,
 sigma_yaw_deg,phase`` followed by ``heading_deg`` (navigation heading, clockwise

@@ -194,7 +194,7 @@ MODELS = ('reduced7', 'stationary10', 'stationary12')
 
 
 def limits(lat, accel_bias, gyro_bias_east, gyro_arw, T):
-    """Analytic accuracy limits of stationary alignment (docs/design.md "aligned well").
+    """Analytic accuracy limits of stationary alignment (docs/contracts.md "aligned well").
 
     Returns ``(tilt_bias, heading_bias, heading_noise)`` in rad: tilt ``a/g``,
     heading ``eps_E/(W cos L)`` from the biases, and heading

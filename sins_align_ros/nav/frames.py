@@ -1,6 +1,6 @@
 """The one module that owns frame and attitude conventions.
 
-Conventions (docs/design.md, a contract):
+Conventions (docs/contracts.md, a contract):
 
 * navigation frame ENU (x east, y north, z up);
 * body frame FLU (REP-103: x forward, y left, z up) everywhere inside the

@@ -20,7 +20,7 @@ of a block take the covariance after its epoch, the aided engine's are cut at ev
 epoch), so the paths stay two, each typed by its protocol.
 
 Frames: body FLU, navigation ENU; attitudes ``C_b_n`` (3, 3) body -> ENU; misalignment
-covariances about the E, N, U axes (rad^2), as the published attitude's (docs/design.md).
+covariances about the E, N, U axes (rad^2), as the published attitude's (docs/contracts.md).
 """
 from typing import Any, Optional, Protocol, Tuple, runtime_checkable
 

@@ -20,7 +20,7 @@ against the GNSS course on straight legs (:mod:`.slow_monitor`: a slow model err
 innovations do not show), and their IMU samples against the sensor model while the vehicle
 moves (:mod:`.motion_check`: vibration and turns the coarse window did not show).
 
-``aligned`` means good enough for the user (docs/design.md: the attitude meets the user's
+``aligned`` means good enough for the user (docs/contracts.md: the attitude meets the user's
 thresholds and the consistency checks pass). It is declared at the first filter epoch
 where that is true and the estimate has settled, and left only on a clear failure
 (:mod:`.aligned_gate`, issue 46: hysteresis on the thresholds and on the consistency
