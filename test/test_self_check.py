@@ -50,9 +50,21 @@ def test_white_noise_above_the_model_widens_it_and_the_grade_biases():
     assert c.widened['accel_vrw_ug_rthz'] == pytest.approx(300.0, rel=0.1)
     # the grade the noise shows has larger biases: raised to the typical ratios
     assert c.widened['gyro_bias_dph'] == pytest.approx(30 * 3.0, rel=0.1)
-    assert c.widened['accel_bias_ug'] == pytest.approx(14 * 300.0, rel=0.1)
+    # the accelerometer bias: 14x its own noise (4200), or the consumer-MEMS class's 5000
+    # the gyro noise shows, whichever is larger
+    assert c.widened['accel_bias_ug'] == 5000.0
     assert not c.heading_observable          # 90 deg/h: no north at rest
     assert any('gyro_arw_dpsh widened' in s for s in c.findings)
+
+
+def test_a_raw_industrial_ahrs_at_rest_gets_its_class_accelerometer_bias():
+    """Gyro 0.42 deg/sqrt(h), accelerometers 120 ug/sqrt(Hz) (an industrial AHRS's raw
+    triads, whose accelerometers have 6-8 mg of bias and 0.5 % misalignment): 14x the
+    accelerometer noise says 1.7 mg; the gyro's class says 9 mg, and at rest that bias is
+    tilt (a car still for 30 s published its north tilt 61' off under 5.8')."""
+    c = check(still(arw=0.42 * DPSH, vrw=120.0 * UG), POS, DEFAULTS)
+    assert c.widened['accel_bias_ug'] == 9000.0
+    assert c.widened['gyro_bias_dph'] == pytest.approx(30 * 0.42, rel=0.1)
 
 
 def test_a_navigation_class_gyro_told_too_good_gets_a_navigation_class_bias():
