@@ -52,8 +52,7 @@ class AlignmentParams:
         parameter's range.
         """
         given = set(overrides(node))
-        values, self.noise_summary = imu_noise_file.apply(
-            self.p, given, {p.name: p.default for p in PARAMS})
+        values, self.noise_summary = imu_noise_file.apply(self.p, given, prm.defaults())
         if not self.noise_summary:
             return
         changed = [k for k in imu_noise_file.SETS if values[k] != self.p[k]]
