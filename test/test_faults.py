@@ -21,7 +21,7 @@ from std_srvs.srv import Trigger  # noqa: E402
 from conftest import spin_until  # noqa: E402
 from sins_align_ros.nav.frames import attitude_error, euler_to_dcm  # noqa: E402
 from sins_align_ros.ros.alignment_node import AlignmentNode  # noqa: E402
-from sins_align_ros.ros.diagnostics import MESSAGE_MAX  # noqa: E402
+from sins_align_ros.io.diagnostic_report import MESSAGE_MAX  # noqa: E402
 from sins_align_ros.ros.playback import Player  # noqa: E402
 from sins_align_ros.sim.faults import FAULTS, MessageStream, inject  # noqa: E402
 from sins_align_ros.sim.presets import scenario  # noqa: E402

@@ -16,7 +16,8 @@ from rclpy.serialization import deserialize_message, serialize_message  # noqa: 
 from sensor_msgs.msg import Imu  # noqa: E402
 
 from sins_align_ros.nav.frames import euler_to_dcm  # noqa: E402
-from sins_align_ros.ros.imu_wire import ImuRows, echo_bodies, header_message  # noqa: E402
+from sins_align_ros.io.cdr import echo_bodies  # noqa: E402
+from sins_align_ros.ros.imu_wire import ImuRows, header_message  # noqa: E402
 from tolerance import assert_roundoff  # noqa: E402
 
 RNG = np.random.default_rng(7)
@@ -125,9 +126,8 @@ def test_vehicle_frame_turns_vectors_and_covariances_and_renames_the_frame():
 def test_odometry_bytes_are_the_message_rclpy_reads():
     from nav_msgs.msg import Odometry as OdometryMsg
 
-    from sins_align_ros.ros.odometry import Odometry
     from sins_align_ros.io.cdr import odometry_head
-    from sins_align_ros.ros.messages import odometry_bodies
+    from sins_align_ros.io.odometry import Odometry, odometry_bodies
     k = 3
     odo = Odometry(RNG.normal(size=(k, 3)), RNG.normal(size=(k, 4)),
                    RNG.normal(size=(k, 6, 6)), RNG.normal(size=(k, 3)),

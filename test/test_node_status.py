@@ -25,7 +25,7 @@ from std_msgs.msg import Bool, String  # noqa: E402
 
 from conftest import spin_until  # noqa: E402
 from sins_align_ros.ros.alignment_node import AlignmentNode  # noqa: E402
-from sins_align_ros.ros.diagnostics import MESSAGE_MAX  # noqa: E402
+from sins_align_ros.io.diagnostic_report import MESSAGE_MAX  # noqa: E402
 from sins_align_ros.ros.playback import Player  # noqa: E402
 from sins_align_ros.ros.status import LATCHED  # noqa: E402
 from sins_align_ros.sim.faults import MessageStream  # noqa: E402

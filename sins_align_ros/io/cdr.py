@@ -1,6 +1,8 @@
 """Bulk decoding of serialized Imu, NavSatFix, TwistWithCovarianceStamped and Odometry.
 
-The messages are CDR as rosbag2 stores them.
+The messages are CDR as rosbag2 stores them. The same layouts serve the other way for
+the node's ``imu/data`` and ``~/odom`` (:func:`echo_bodies`, :func:`header_bytes`,
+:func:`odometry_head`), which the replay's result bag writes too.
 
 An Imu message has a fixed layout once its ``header.frame_id`` length is known, so a
 whole recording is decoded with a few numpy views instead of one Python object per
@@ -114,6 +116,21 @@ def _one_layout(raws):
     t = stamp[:, 0].view('<i4').astype(float) + stamp[:, 1] * 1e-9
     body = rows[:, 4 + a:4 + a + _BODY].copy().view('<f8')
     return t, body, np.full(n, a, dtype=np.int64), np.ones(n, dtype=bool)
+
+
+def echo_bodies(src_bodies, q, P_phi):
+    """Return the ``imu/data`` bodies: the inputs' (K, 37) with the attitude written over.
+
+    ``q`` (K, 4) orientation (x, y, z, w), NaN while unknown: then identity with
+    ``orientation_covariance[0] = -1`` (REP-145); ``P_phi`` (K, 3, 3) its covariance.
+    """
+    out = np.array(src_bodies, dtype=float).reshape(-1, IMU_DOUBLES)
+    known = np.isfinite(q[:, 0])
+    out[:, IMU_ORIENTATION] = np.where(known[:, None], q, (0.0, 0.0, 0.0, 1.0))
+    unknown_cov = np.zeros(9)
+    unknown_cov[0] = -1.0
+    out[:, IMU_ORIENTATION_COV] = np.where(known[:, None], P_phi.reshape(-1, 9), unknown_cov)
+    return out
 
 
 def header_bytes(stamp, frame_id):

@@ -30,13 +30,15 @@ from rclpy.node import Node
 from std_srvs.srv import Trigger
 
 from ..align import AlignmentSession
+from ..io.node_status import NO_IMU, imu_stopped, typed_state
 from ..nav import kernels
 from .alignment_params import PARAMS, AlignmentParams
-from .diagnostics import CallbackErrors, PeriodReport
+from ..io.diagnostic_report import PeriodReport
+from .diagnostics import CallbackErrors, status_message
 from .inputs import feed_imu, fix_args, heading_args, subscribe, velocity_args
 from .outputs import RowPublisher, create_publishers
 from .runner import make_executor, run
-from .status import NO_IMU, TypedStatus, imu_stopped, typed_state
+from .status import TypedStatus
 
 __all__ = ['PARAMS', 'AlignmentShell', 'AlignmentNode', 'main']
 #: how the input sources are named in log lines and diagnostics
@@ -218,10 +220,10 @@ class AlignmentShell:
         s = self.session.status()
         state = self._update_typed(s)
         arr = DiagnosticArray()
-        arr.status = [self.report.status(
+        arr.status = [status_message(self.report.status(
             f'{self.get_fully_qualified_name()}: alignment', self.p['imu_frame_id'] or 'imu',
             self.session, s, state, self.p, self._imu_age(), self.errors, self.counts,
-            self.rows.odom, self.params.noise_summary)]
+            self.rows.odom, self.params.noise_summary))]
         arr.header.stamp = self.get_clock().now().to_msg()
         self.pub_diag.publish(arr)
 

@@ -88,22 +88,6 @@ class ImuRows:
         return list(zip(self.t.tolist(), self.head, self.body))
 
 
-def echo_bodies(src_bodies, q, P_phi):
-    """Return the ``imu/data`` bodies: the inputs' (K, 37) with the attitude written over.
-
-    ``q`` (K, 4) orientation (x, y, z, w), NaN while unknown: then identity with
-    ``orientation_covariance[0] = -1`` (REP-145); ``P_phi`` (K, 3, 3) its covariance.
-    """
-    out = np.array(src_bodies, dtype=float).reshape(-1, cdr.IMU_DOUBLES)
-    known = np.isfinite(q[:, 0])
-    out[:, cdr.IMU_ORIENTATION] = np.where(known[:, None], q, (0.0, 0.0, 0.0, 1.0))
-    unknown_cov = np.zeros(9)
-    unknown_cov[0] = -1.0
-    out[:, cdr.IMU_ORIENTATION_COV] = np.where(known[:, None], P_phi.reshape(-1, 9),
-                                               unknown_cov)
-    return out
-
-
 def header_message(head):
     """Return the ``std_msgs/Header`` of a serialized message's start ``head``."""
     sec, nsec, frame_id = cdr.header_fields(head)

@@ -6,15 +6,15 @@
   (``orientation_covariance[0] = -1``, REP-145). With ``imu_mounting_rpy_deg`` set, the
   body is the vehicle: rates, accelerations and their covariances are turned into its
   frame and the frame_id is ``base_frame_id``. Built from the input's bytes
-  (:mod:`.imu_wire`);
+  (:mod:`.imu_wire`, :func:`~sins_align_ros.io.cdr.echo_bodies`);
 * ``~/euler`` (geometry_msgs/Vector3Stamped): REP-103 roll, pitch, yaw in rad; NaN for
   an angle the node does not know (yaw while the heading is unobservable,
-  :func:`.status.known_euler`); built only while someone subscribes;
+  :func:`~sins_align_ros.io.node_status.known_euler`); built only while someone subscribes;
 * ``~/odom`` (nav_msgs/Odometry) with the navigation filters (``kf``, ``vbakf``,
   ``mvbakf``, ``ukf``) and ``continue_navigation``: the GNSS/INS solution at every IMU
   sample from the start of fine alignment on, pose in ``odom_frame_id`` (ENU, origin
   where fine alignment started: ``odom_origin_*`` in the diagnostics), twist in the
-  body's frame, the same as ``imu/data``'s (:mod:`.odometry`, :mod:`.messages`);
+  body's frame, the same as ``imu/data``'s (:mod:`~sins_align_ros.io.odometry`);
 * ``/diagnostics`` (diagnostic_msgs/DiagnosticArray, :mod:`.diagnostics`) and the typed
   status (:mod:`.status`) have their own modules; :func:`create_publishers` makes the
   four plain publishers.
@@ -32,11 +32,11 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu
 
 from ..io import cdr
+from ..io.cdr import echo_bodies
+from ..io.node_status import known_euler
+from ..io.odometry import OdometryFrame, odometry_bodies
 from .conversions import set_vector3
-from .imu_wire import echo_bodies, header_message
-from .messages import odometry_bodies
-from .odometry import OdometryFrame
-from .status import known_euler
+from .imu_wire import header_message
 
 
 def create_publishers(create_publisher):

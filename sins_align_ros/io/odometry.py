@@ -1,9 +1,9 @@
 """The navigation filters' solution as odometry: local ENU pose and body twist.
 
-ROS-free arithmetic behind ``~/odom``: the position becomes an ENU offset from an
-origin latched at the first valid row (where fine alignment started); the velocity
-is resolved in the body axes with its covariance from the velocity and attitude
-errors; the angular rate is bias-corrected.
+ROS-free arithmetic behind the node's ``~/odom`` (and the replay's result bag): the
+position becomes an ENU offset from an origin latched at the first valid row (where
+fine alignment started); the velocity is resolved in the body axes with its covariance
+from the velocity and attitude errors; the angular rate is bias-corrected.
 """
 from dataclasses import dataclass
 
@@ -66,3 +66,16 @@ class OdometryFrame:
         pose_cov = np.broadcast_to(P_nav[np.ix_(ip, ip)], (len(q), 6, 6))
         w = np.asarray(w_b, dtype=float)[ok] - gyro_bias
         return ok, Odometry(pos, q, pose_cov, v_b, w, twist_cov)
+
+
+def odometry_bodies(odo):
+    """Return the serialized bodies (K, 85) of ``nav_msgs/Odometry`` from batch ``odo``.
+
+    ``odo``: an :class:`Odometry` of K rows. The columns
+    follow the message: ``pose.pose`` position (3) and orientation (4), its covariance
+    (36), ``twist.twist`` linear (3) and angular (3), its covariance (36);
+    ``cdr.odometry_head(...) + row.tobytes()`` is the message.
+    """
+    k = len(odo.q)
+    return np.concatenate([odo.position, odo.q, np.reshape(odo.pose_cov, (k, 36)), odo.v_b,
+                           odo.w_b, np.reshape(odo.twist_cov, (k, 36))], axis=1)
