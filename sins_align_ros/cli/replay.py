@@ -1,7 +1,7 @@
 """sins_align_replay: the alignment pipeline on recorded data, without a ROS graph.
 
     sins_align_replay INPUT [--params FILE.yaml] [--set name=value ...] --out OUT.csv
-                      [--report OUT.png]
+                      [--out OUT.mcap [--copy-input]] [--report OUT.png]
 
 INPUT is a rosbag2 (folder, .mcap or .db3) with ``imu/data_raw`` (and optionally
 ``gnss/fix``, ``gnss/vel``, ``sim/truth``), or a PSINS ``.imu`` log. Parameters are the
@@ -10,7 +10,9 @@ overrides; an unknown name is an error naming the closest parameter). A topic
 option given explicitly must name a topic of the bag (an error lists its topics);
 the defaults ``gnss/fix`` and ``gnss/vel`` may be absent (no GNSS). Errors end with
 one line on stderr and a non-zero exit code; what was computed before a fault in
-the input is still written.
+the input is still written. ``--out`` names a CSV, or with ``.mcap`` a result bag: the
+node's topics as a rosbag2 for Foxglove, PlotJuggler and ``ros2 bag``
+(:mod:`~sins_align_ros.io.result_bag`); give it twice for both.
 """
 import argparse
 import os
@@ -22,9 +24,10 @@ import numpy as np
 from ..align import AlignmentSession, Output
 from ..align import params as prm
 from ..io import imu_noise_file
-from ..io.bag import BagError, read_bag
+from ..io.bag import BagError, imu_frame_id, read_bag
 from ..io.psins import PsinsFormatError, read_psins
 from ..io.report import plot_report, truth_euler_at
+from ..io.result_bag import ResultBag
 from ..io.results import write_csv
 from ..nav.frames import yaw_to_heading
 from ..units import DEG
@@ -39,7 +42,11 @@ def _parser():
     ap.add_argument('--params', help='YAML parameter file (alignment_node layout or flat)')
     ap.add_argument('--set', action='append', default=[], metavar='NAME=VALUE',
                     help='override one parameter (repeatable)')
-    ap.add_argument('--out', required=True, help='result CSV')
+    ap.add_argument('--out', required=True, action='append',
+                    help='result CSV; RESULT.mcap: a result bag, the folder RESULT/ '
+                    '(docs/replay.md#result-bag); may be given twice')
+    ap.add_argument('--copy-input', action='store_true',
+                    help='copy the input bag\'s messages into the result bag')
     ap.add_argument('--report', help='PNG figure: estimate (or error vs sim/truth) +/-3 sigma')
     ap.add_argument('--every', type=int, default=1, help='write one CSV row in N (default 1)')
     ap.add_argument('--duration', type=float, default=None, metavar='SECONDS',
@@ -56,7 +63,7 @@ def _parser():
     return ap
 
 
-def load_parameters(params_file, sets, log=lambda m: None):
+def load_parameters(params_file, sets, log=lambda m: None, node_values=None):
     """Alignment parameter dict from a YAML file and ``name=value`` overrides, validated.
 
     An ``imu_noise_file`` among them sets the noise parameters it gives where neither the
@@ -64,7 +71,8 @@ def load_parameters(params_file, sets, log=lambda m: None):
     ``log``).
 
     Parameters of the node's ROS interface (``odom_frame_id``, ...) that a shared
-    preset may hold are checked and left out (said through ``log``).
+    preset may hold are checked and left out (said through ``log``), or, given a dict
+    ``node_values``, put there (the result bag uses them).
     """
     values = {}
     if params_file:
@@ -75,7 +83,9 @@ def load_parameters(params_file, sets, log=lambda m: None):
         k, v = item.split('=', 1)
         values[k.strip()] = prm.parse_value(k.strip(), v.strip())
     values, node_only = prm.split_node_params(values)
-    if node_only:
+    if node_values is not None:
+        node_values.update(node_only)
+    elif node_only:
         log(f'node-only parameters not used by the replay: {", ".join(sorted(node_only))}')
     values = prm.validate(values)
     filled, said = imu_noise_file.apply(values, set(values), prm.defaults())
@@ -88,11 +98,13 @@ def load_parameters(params_file, sets, log=lambda m: None):
         raise ValueError(f'{values["imu_noise_file"]} gives a value refused: {exc}') from None
 
 
-def replay_psins(path, values, log, duration=None):
+def replay_psins(path, values, log, duration=None, bag=None):
     """Run a PSINS log through an :class:`AlignmentSession`; returns (Output, pipeline, None).
 
     The log holds increments: they go in as they are (``AlignmentSession.increments``),
-    the clock starting at the header's stamp.
+    the clock starting at the header's stamp. ``bag``: a
+    :class:`~sins_align_ros.io.result_bag.ResultBag` that takes the node's topics (the
+    rates of ``imu/data`` are the increments over their intervals).
     """
     rec = read_psins(path)
     v = dict(values)
@@ -105,17 +117,46 @@ def replay_psins(path, values, log, duration=None):
     session = AlignmentSession(v)
     session.start_clock(rec.t0)
     n = len(rec.t) if duration is None else int(np.searchsorted(rec.t, rec.t0 + duration + 1e-9))
-    out = session.increments(rec.t[:n], rec.dtheta[:n], rec.dv[:n])
-    return Output.concat([out, session.finish()]), session.pipeline, None
+    if bag is None:
+        out = session.increments(rec.t[:n], rec.dtheta[:n], rec.dv[:n])
+        return Output.concat([out, session.finish()]), session.pipeline, None
+    dt = np.diff(rec.t[:n], prepend=rec.t0)
+    dt[dt <= 0] = np.nan
+    w, f = rec.dtheta[:n] / dt[:, None], rec.dv[:n] / dt[:, None]
+    outs = []
+    for a, b in bag.pieces(rec.t, 0, n):
+        bag.before(rec.t[a], session)
+        outs.append(session.increments(rec.t[a:b], rec.dtheta[a:b], rec.dv[a:b]))
+        _to_bag(bag, outs[-1], rec.t, w, f, a, b, session)
+    outs.append(session.finish())
+    _to_bag(bag, outs[-1], rec.t, w, f, 0, n, session, end=True)
+    return Output.concat(outs), session.pipeline, None
 
 
-def replay_bag(path, values, args, log, with_truth=True):
+def _to_bag(bag, out, t, w, f, a, b, session, end=False):
+    """Give ``bag`` the rows of ``out``, from samples ``a:b`` (stamps ``t``, rates ``w, f``).
+
+    Each row's sample is the first of the recent ones stamped at or after it (as the
+    node pairs them); ``end``: the run is over, the last period's report is written.
+    """
+    if len(out.t):
+        lo = max(0, a - 8192)
+        k = lo + np.searchsorted(t[lo:b], out.t - 1e-9)
+        k = np.clip(k, 0, max(b - 1, 0))
+        bag.rows(out, w[k], f[k], session)
+    bag.after(session, 0 if end else b - a)
+    if end and bag.now is not None:
+        bag.before(bag.now + bag.p['diagnostic_period'], session)
+
+
+def replay_bag(path, values, args, log, with_truth=True, bag=None):
     """Run a rosbag2 through an :class:`AlignmentSession`; returns (Output, pipeline, truth).
 
     ``truth`` is a list of (t, q) or empty (``with_truth`` False: not read). IMU and GNSS
     messages pass the node's input checks (the first occurrence of each reason is
     logged, the counts at the end), in recording order; the IMU between two GNSS
-    messages goes in as one block (``AlignmentSession.imu_block``). A fault part-way
+    messages goes in as one block (``AlignmentSession.imu_block``; cut at each diagnostic
+    period's end for a result ``bag``, which takes every output). A fault part-way
     through raises :class:`BagError` with ``.partial`` set to the (Output, pipeline,
     truth) computed from what came before it.
     """
@@ -132,30 +173,48 @@ def replay_bag(path, values, args, log, with_truth=True):
 
     def report():
         for source, key, text in session.notices():
+            if bag is not None:
+                bag.fault(source, key, text)
             if (source, key) not in seen:
                 seen.add((source, key))
                 log(f'{source}: {text} (first occurrence; counted at the end)')
 
     def imu(k0, k1):
-        if k1 > k0:
-            outs.append(session.imu_block(rec.t[k0:k1], rec.w[k0:k1], rec.f[k0:k1],
-                                          rec.missing[k0:k1]))
+        for a, b in ((k0, k1),) if bag is None else bag.pieces(rec.t, k0, k1):
+            if b <= a:
+                continue
+            if bag is not None:
+                bag.before(rec.t[a], session)
+            outs.append(session.imu_block(rec.t[a:b], rec.w[a:b], rec.f[a:b],
+                                          rec.missing[a:b]))
             report()
+            if bag is not None:
+                _to_bag(bag, outs[-1], rec.t, rec.w, rec.f, a, b, session)
+
+    def event(out):
+        outs.append(out)
+        report()
+        if bag is not None:
+            _to_bag(bag, out, rec.t, rec.w, rec.f, k, k, session)
 
     try:
         k = 0
         for ev, before in zip(events, rec.imu_before):
             imu(k, min(before, n))
             k = max(k, min(before, n))
-            if ev.kind == 'fix':
-                outs.append(session.fix(ev.t, *ev.data))
-            elif ev.kind == 'vel':
-                outs.append(session.velocity(ev.t, *ev.data))
-            else:
+            if ev.kind == 'truth':
                 truth.append((ev.t, ev.data[0]))
-            report()
+                continue
+            if bag is not None:
+                bag.before(ev.t, session)
+            if ev.kind == 'fix':
+                event(session.fix(ev.t, *ev.data))
+            else:
+                event(session.velocity(ev.t, *ev.data))
         imu(k, n)
         outs.append(session.finish())
+        if bag is not None:
+            _to_bag(bag, outs[-1], rec.t, rec.w, rec.f, 0, n, session, end=True)
     finally:
         imu_counts, gnss_counts = session.input_counts()
         counts = {f'imu {k}': v for k, v in imu_counts.items()
@@ -199,6 +258,19 @@ def _truth_euler(out, truth):
     return truth_euler_at(out.t, [t for t, _ in truth], [q for _, q in truth])
 
 
+def _outputs(args):
+    """Return ``(CSV paths, result bag paths)`` of ``--out``; ``ValueError`` if misused."""
+    bags = [p for p in args.out if Path(p).suffix.lower() == '.mcap']
+    csvs = [p for p in args.out if p not in bags]
+    if len(bags) > 1 or len(csvs) > 1:
+        raise ValueError('--out takes at most one CSV and one .mcap result bag')
+    if args.copy_input and not bags:
+        raise ValueError('--copy-input needs a result bag: --out RESULT.mcap')
+    if args.copy_input and Path(args.input).suffix.lower() == '.imu':
+        raise ValueError('--copy-input needs a rosbag2 input, not a PSINS log')
+    return csvs, bags
+
+
 def _summary(out, pipe):
     k = len(out.t) - 1
     if k < 0:
@@ -219,35 +291,53 @@ def main(argv=None):
     args = _parser().parse_args(argv)
     log = (lambda m: None) if args.quiet else (lambda m: print(f'sins_align_replay: {m}',
                                                                file=sys.stderr))
+    node_values = {}
     try:
-        values = load_parameters(args.params, args.set, log)
+        values = load_parameters(args.params, args.set, log, node_values)
+        csvs, bags = _outputs(args)
     except (ValueError, OSError) as exc:
         print(f'sins_align_replay: error: {exc}', file=sys.stderr)
         return 2
-    status, truth = 0, None
+    psins = Path(args.input).suffix.lower() == '.imu'
+    status, truth, bag = 0, None, None
     try:
-        if Path(args.input).suffix.lower() == '.imu':
-            out, pipe, truth = replay_psins(args.input, values, log, args.duration)
+        if bags:
+            frame = 'imu' if psins else imu_frame_id(args.input, args.imu_topic)
+            bag = ResultBag(bags[0], node_values, values.get('coarse_duration', 60.0), frame)
+        if psins:
+            out, pipe, truth = replay_psins(args.input, values, log, args.duration, bag)
         else:
             out, pipe, truth = replay_bag(args.input, values, args, log,
-                                          with_truth=bool(args.report))
-    except PsinsFormatError as exc:
+                                          with_truth=bool(args.report), bag=bag)
+    except (PsinsFormatError, OSError) as exc:
         print(f'sins_align_replay: error: {exc}', file=sys.stderr)
+        if bag is not None:
+            bag.abort()
         return 1
     except BagError as exc:
         print(f'sins_align_replay: error: {exc}', file=sys.stderr)
         partial = getattr(exc, 'partial', None)
         if partial is None:
+            if bag is not None:
+                bag.abort()
             return 1
         out, pipe, truth = partial
         status = 1
     try:
-        write_csv(args.out, out, every=args.every)
+        for path in csvs:
+            write_csv(path, out, every=args.every)
+        if bag is not None:
+            if args.copy_input and not psins:
+                bag.copy_input(args.input, log)
+            bag.close()
+            log(f'result bag: {bag.target}/ (open {bag.target / bag.target.name}.mcap)')
         if args.report and len(out.t):
             plot_report(args.report, out, _truth_euler(out, truth),
                         title=f"{Path(args.input).name}: {pipe.cfg['fine_filter']}")
-    except OSError as exc:
+    except (OSError, BagError) as exc:
         print(f'sins_align_replay: error: cannot write output: {exc}', file=sys.stderr)
+        if bag is not None:
+            bag.abort()
         return 1
     for w in pipe.warnings + [text for _, text in pipe.conditions()]:
         log(f'warning: {w}')

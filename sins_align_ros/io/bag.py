@@ -102,6 +102,32 @@ def iter_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='
         reader.close()
 
 
+def imu_frame_id(path, imu_topic='imu/data_raw'):
+    """Return the ``frame_id`` of the first message on the bag's IMU topic ('' if none)."""
+    reader = _open(path)
+    try:
+        imu = _match(reader.connections, imu_topic, IMU_TYPE, True)
+        for conn, _, raw in reader.messages(connections=imu):
+            return reader.deserialize(raw, conn.msgtype).header.frame_id
+        return ''
+    finally:
+        reader.close()
+
+
+def raw_messages(path):
+    """Yield ``(topic, msgtype, msgdef, rihs01, log time ns, raw CDR)`` of every message.
+
+    In recording order, for copying a bag's messages as they are (the result bag's
+    ``--copy-input``); ``msgdef`` is the message definition text the bag stored.
+    """
+    reader = _open(path)
+    try:
+        for conn, t_ns, raw in reader.messages():
+            yield conn.topic, conn.msgtype, conn.msgdef.data, conn.digest, t_ns, raw
+    finally:
+        reader.close()
+
+
 def read_bag(path, imu_topic='imu/data_raw', fix_topic='gnss/fix', truth_topic='sim/truth',
              vel_topic='gnss/vel', required=()):
     """Read a rosbag2 folder or .mcap file at once into a :class:`BagRecording`.
