@@ -400,6 +400,8 @@ class AlignmentPipeline:
         if self.aided and self.catch_up is not None:     # it runs over the window's fixes
             self.gnss.requeue(self.clock.t_first, t_end)
         self.headings.drop_pending(t_end)
+        if self.catch_up is not None:                    # and its external headings
+            self.headings.requeue(self.clock.t_first, t_end)
 
     def _catch_up(self, budget):
         """Run the reprocessing stage over at most ``budget`` queued samples (reprocess)."""

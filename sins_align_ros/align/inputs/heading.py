@@ -164,6 +164,15 @@ class HeadingBuffer:
                 return fix if fix.t >= t_end - COARSE_MAX_AGE_S else None
         return None
 
+    def requeue(self, t0, t1):
+        """Queue again the epochs stamped in (``t0``, ``t1``]: a stage reprocesses that span.
+
+        They go before those still queued (stamped after ``t1``), in stamp order.
+        """
+        again = [fix for fix in self.history if t0 < fix.t <= t1 + 1e-9]
+        later = [fix for fix in self.pending if fix.t > t1 + 1e-9]
+        self.pending = deque(again + later, maxlen=max(QUEUE, len(again) + len(later)))
+
     def drop_pending(self, t):
         """Forget the queued epochs stamped at or before ``t`` (coarse alignment's history)."""
         while self.pending and self.pending[0].t <= t + 1e-9:

@@ -109,8 +109,8 @@ def hand_over(window, cfg, noise, clock, gnss, headings, install):
     warnings.extend(w for w in res.warnings if not (no_heading and w.startswith('gyro bias')))
     heading_known = (check is None or check.heading_observable
                      or (aided and not check.at_rest) or heading_measured)
-    replay = reprocess.applies(cfg, aided, heading_measured, headings)
-    C_window = res.C_b_n
+    replay = reprocess.applies(cfg, aided)
+    C_window, sigma_window = res.C_b_n, res.sigma
     if replay:                      # the stage starts where the window began
         if aided:
             res0 = reprocess.aided_start(res, window, gnss, cfg, install)
@@ -119,6 +119,8 @@ def hand_over(window, cfg, noise, clock, gnss, headings, install):
         else:
             res = reprocess.start_of_window(res, window, noise, coarse_info['method'])
     if replay:
+        if heading_measured:
+            res = reprocess.measured_heading_prior(res, float(sigma_window[2]))
         clock.t_last = clock.t_first
     fine, engine_warnings = fine_stage_for(res, cfg, noise, bool(gnss.vels), heading_known,
                                            heading_measured, clock, install, headings)
