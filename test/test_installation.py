@@ -243,6 +243,30 @@ def test_the_sideslip_check_judges_the_velocity_in_the_vehicle_frame():
         assert not any(check.add(v, C, var) for _ in range(100))
 
 
+def test_the_sideslip_check_judges_old_epochs_in_the_heading_known_now():
+    """A heading that starts as the GNSS course and is corrected by 80 deg: the old epochs move.
+
+    Session 47: with stale angles the median stayed under the bound for 20 more epochs and
+    the ship under way was aligned before the mounting check saw its turned IMU.
+    """
+    from sins_align_ros.align.stages.sideslip import MIN_EPOCHS, SideslipCheck
+    v_n = np.array([0.0, 5.0, 0.0])                           # northwards
+    course = euler_to_dcm([0.0, 0.0, np.pi / 2])              # heading taken from the course
+    check = SideslipCheck(45.0)
+    assert not any(check.add(v_n, course, 1e-4) for _ in range(MIN_EPOCHS))
+    stale = SideslipCheck(45.0)
+    for _ in range(MIN_EPOCHS):
+        stale.add(v_n, course, 1e-4)
+    # the filter turns the heading 80 deg (yaw +80: C_after = Rz(80) C_before, phi_up = -80)
+    for _ in range(8):
+        check.correct(np.radians(-10.0))
+    turned = euler_to_dcm([0.0, 0.0, np.pi / 2 + np.radians(80.0)])
+    found = check.add(v_n, turned, 1e-4)
+    assert 'lies 80 deg' in found and 'about 80 deg' in found
+    # without the corrections the old epochs keep the median at zero
+    assert not stale.add(v_n, turned, 1e-4)
+
+
 @pytest.mark.parametrize('name', ['ship_underway', 'seed003_car'])
 def test_an_imu_turned_about_the_vertical_and_untold_is_found_under_way(name):
     """A yaw mounting leaves gravity alone: the GNSS velocity shows it (align/stages/sideslip.py).

@@ -292,10 +292,14 @@ class FineStage(EpochUpdates):
     def note_update(self, t, C_before):
         """Record the attitude correction of the update just applied at ``t`` (settle test).
 
-        ``C_before`` (3, 3): the attitude before the update (:mod:`.aligned_gate`).
+        ``C_before`` (3, 3): the attitude before the update (:mod:`.aligned_gate`); the
+        mounting check takes its part about the vertical (:meth:`.SideslipCheck.correct`).
         """
+        phi = rotation_vector(C_before, self.engine.mech.C_b_n)
         if self.stepping.settle is not None:
-            self.stepping.settle.add(t, rotation_vector(C_before, self.engine.mech.C_b_n))
+            self.stepping.settle.add(t, phi)
+        if self.sideslip is not None:
+            self.sideslip.correct(phi[2])
 
     # -- stepping (by the engine's kind, :mod:`.fine_stepping`) --------------------------
     def run(self, t, dtheta, dv, i, gnss):
