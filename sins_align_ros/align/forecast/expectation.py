@@ -14,7 +14,10 @@ one of two ways, by what that covariance depends on:
   filter's own period if slower) with the zero-velocity variance scaled by the ratio of the
   periods, which keeps the measurements' information per second (the continuous-time
   limit); after convergence the steps lengthen to :data:`LATE_STEP_S`. An external heading
-  seen recently is replayed at its rate and median variance.
+  seen recently is replayed at its rate and median variance, the steps kept short (one
+  lumped epoch claims more than the epochs it stands for, with the drift between them);
+  a stage that reprocesses the window takes the window's headings from its start
+  (:func:`_new_stage`), and the sigma forecast is the shadow's at the stage's first row.
 * **Moving base, linear filters** (``kf`` and the navigation family: ``forecast_model`` of
   the engine). A linear filter's covariance does not depend on the measured values, only
   on its model: the forecast runs the filter's covariance on, epoch after epoch, with the
@@ -263,7 +266,10 @@ def _still(p):
     ts, Ps = [t0], [np.diag(fine.attitude_cov()).copy()]
     t = t0
     while t < t0 + HORIZON_S:
-        dt = LATE_STEP_S if fine.converged else period
+        # an external heading keeps the steps short: one epoch with the information of
+        # LATE_STEP_S s claims more than that many epochs with the drift between them
+        # (a still MEMS IMU with a 0.2-deg compass: 0.060 deg forecast, 0.098 published)
+        dt = LATE_STEP_S if fine.converged and heading is None else period
         eng.R = eng.R * (eng.period / dt)
         eng.period, eng.since_update = dt, 0.0
         t += dt
@@ -275,7 +281,7 @@ def _still(p):
         fine.step(t, C.T @ w_ie_n * dt, C.T @ f_n * dt, None)
         ts.append(t)
         Ps.append(np.diag(fine.attitude_cov()).copy())
-        if fine.phase == 'aligned':
+        if fine.phase == 'aligned' and t >= t_ready:   # the sigma of its first row
             break
     ts, Ps = np.array(ts), np.array(Ps)
     e = _apply_rules(p, fine, ts, Ps)
@@ -311,8 +317,10 @@ def _new_stage(p):
     expected_duration`); the stage starts at its first sample with the reprocessing prior
     (:mod:`~..stages.reprocess`) and the window's gyrocompass heading where it applies
     (:func:`~..stages.reprocess.gyrocompass_plan`, with the configured noise), unless
-    ``coarse_reprocess`` is off or an external heading sets the coarse heading (then at the
-    window's end, from the coarse sigma).
+    ``coarse_reprocess`` is off (then at the window's end, from the coarse sigma). An
+    external heading sets the coarse heading: its sigma, or, reprocessing, the prior
+    :func:`~..stages.reprocess.measured_heading_prior` gives it (the shadow's epochs then
+    begin at the window's start, as the stage takes the window's headings again).
     """
     cfg = dict(p.cfg)
     cfg['fine_filter'] = choose_filter(cfg, False)
@@ -321,11 +329,14 @@ def _new_stage(p):
     T = coarse_stage.expected_duration(p.noise, lat, cfg)
     sigma, _ = coarse_stage.coarse_sigma(p.noise, T, lat, False)
     heading = _heading_source(p)
-    replay = cfg['coarse_reprocess'] and heading is None
+    replay = cfg['coarse_reprocess']
     if replay:
         sigma = prior_sigma(p.noise, T, lat, False, sigma)
     if heading is not None:          # the coarse stage takes the external heading
         sigma[2] = math.sqrt(heading[0])
+        if replay:
+            sigma = reprocess.measured_heading_prior(
+                coarse_stage.CoarseResult(np.eye(3), sigma, np.zeros(3)), sigma[2]).sigma
     start = coarse_stage.CoarseResult(np.eye(3), sigma, np.asarray(position, float))
     known = (heading_limit_var(lat, p.noise) > 0.0 or p.noise.gyro_bias == 0.0
              or heading is not None)
