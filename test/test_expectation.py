@@ -159,19 +159,22 @@ def test_moving_base_forecast_waits_for_the_filter_then_runs_its_covariance_on()
     """ship_underway (kf): unknown in the coarse window; from the first GNSS epoch of fine
     alignment, the filter's covariance run on with the last interval's motion.
 
-    (``aligned`` at the 2 deg heading bound, 136 s: an aided filter need not stop
-    converging first. The heading information comes with the steady acceleration that
-    starts at 60 s and grows faster and faster; the trend of the variance's last 12 s,
-    used before, forecast 340-835 s at 70-90 s and 249 s at 106 s.)
+    (``aligned`` at the 2 deg heading bound, 70 s: the stage runs over the 60-s window's
+    samples and fixes (``coarse_reprocess_aided``; 136 s when it started at the window's
+    end). The heading information comes with the steady acceleration that starts at 60 s
+    and grows faster and faster; the trend of the variance's last 12 s, used before,
+    forecast 340-835 s at 70-90 s and 249 s at 106 s. The forecast may miss by one GNSS
+    interval, 1 s, besides its 10 %: ``aligned`` is decided at the filter's epochs.)
     """
     log, run, t_al, sig = _forecasts('ship_underway', 360.0, every=5.0)
-    assert 120.0 < t_al < 160.0
-    assert sig[2] == pytest.approx(math.radians(2.0), rel=0.02)
+    assert 60.0 < t_al < 80.0
+    # (the first aligned row is the catch-up's end: its sigma may be a little under 2 deg)
+    assert sig[2] == pytest.approx(math.radians(2.0), rel=0.03)
     coarse = [e for t, ph, e in log if ph == 'coarse' and t > 15.0]
     assert coarse and all(math.isnan(e.t_aligned) and 'moving base' in e.note for e in coarse)
     fine = [(t, e) for t, ph, e in log if ph == 'fine']
     assert len(fine) > 10 and all(e.basis == MOTION for _, e in fine)
-    assert all(abs(e.t_aligned - t_al) <= 0.1 * t_al for _, e in fine)
+    assert all(abs(e.t_aligned - t_al) <= 0.1 * t_al + 1.0 for _, e in fine)
     assert all(e.sigma[2] == pytest.approx(math.radians(2.0), rel=0.03) for _, e in fine)
     done = [e for _, ph, e in log if ph == 'aligned']
     assert done and done[0].t_aligned == pytest.approx(t_al, abs=0.02)

@@ -131,5 +131,8 @@ def test_car_consumer_with_node_defaults_is_no_longer_claimed_wrong(monkeypatch)
     assert np.all(r['end_sigma'][:2] <= 1.5 * sc.imu.accel_bias_ug * 1e-6)
     with monkeypatch.context() as mp:
         _before(mp)
-        before = run_integrity(run_pipeline(defaults, data), sc.imu_rate_hz)
+        # and the flow of then: the stage started at the window's end (run over the window
+        # the old model is wrong on fewer rows: 4 % of them here)
+        before = run_integrity(run_pipeline({**defaults, 'coarse_reprocess_aided': False}, data),
+                               sc.imu_rate_hz)
     assert before['silent'] and before['outside'][1] > 0.3

@@ -169,10 +169,14 @@ def test_a_robot_that_waited_still_widens_its_noise_once_it_drives():
     assert chk.n_windows >= 3
     # under way: the vibration (3 deg/s RMS per sample at 30 Hz) widened the gyro noise
     # beyond twice the model's, and the filter's process noise with it; the walk bound
-    # over the windows then narrowed it back (never below the configured figure)
+    # over the windows narrows it back where it is lower (never below the configured
+    # figure): with the stage run over the window (10 windows by 140 s, 7 without) the
+    # widened 4.2 deg/sqrt(h) is under the walk's 8.0 and stays
     arw = chk.widened['gyro_arw_dpsh']
     assert arw > NOISE_RATIO * told
-    assert chk.figures['motion_check_gyro_walk_narrowed_dpsh'] == arw
+    walk = chk.figures['motion_check_gyro_walk_dpsh']
+    narrowed = chk.figures.get('motion_check_gyro_walk_narrowed_dpsh')
+    assert narrowed == arw if narrowed is not None else walk >= arw
     assert eng.Qc[eng.i_phi] == pytest.approx((arw * DPSH) ** 2, rel=1e-9)
     # the turns: the scale factors of a MEMS triad
     # (the model takes COHERENCE_FACTOR times the class's sigmas: rotation_error.py)

@@ -1,6 +1,7 @@
 """Store and reprocess (issue 46) for the GNSS-aided filters: the stage runs over the window.
 
-Off by default (``coarse_reprocess_aided``); the reprocess module docstring says why.
+On by default (``coarse_reprocess_aided``, since session 47); the reprocess module
+docstring says what it gives and what it cost.
 The window's IMU samples and GNSS fixes go through the fine filter from the window's first
 sample (:func:`~sins_align_ros.align.stages.reprocess.aided_start`,
 :meth:`~sins_align_ros.align.inputs.gnss_buffer.GnssBuffer.requeue`); what is published
@@ -22,13 +23,14 @@ from sins_align_ros.sim.scenario import ScenarioStream
 
 #: the ship under way (navigation grade, GNSS position and velocity at 1 Hz), 60-s window
 SHIP, SEED, SPAN = 'ship_underway', 1000, 75.0
-#: the reprocessing of GNSS-aided stages is off by default (reprocess module docstring)
-ON = {'coarse_reprocess_aided': True}
+#: the reprocessing of GNSS-aided stages, on by default (reprocess module docstring), and off
+ON, OFF = {'coarse_reprocess_aided': True}, {'coarse_reprocess_aided': False}
 
 
 def test_requeue_puts_the_windows_fixes_ahead_of_the_waiting_ones():
     """Fixes of the history in (t0, t1] are queued again, in order, before those already
-    waiting (stamped after t1); the queue grows to hold them all."""
+    waiting (stamped after t1); the queue grows to hold them all, and shrinks back to its
+    bound for live fixes once the stage has taken them."""
     g = GnssBuffer()
     for k in range(300):                             # 300 fixes of history, 1 Hz
         g.position_fix(float(k), 30.0, 120.0, 0.0, None, None, queue=False)
@@ -39,6 +41,9 @@ def test_requeue_puts_the_windows_fixes_ahead_of_the_waiting_ones():
     assert stamps == [float(k) for k in range(10, 303)]
     assert g.pending.maxlen == QUEUE + 290
     assert g.fix_nearest(41.4)[0] == 41.0
+    for k in range(10, 204):                         # the stage takes them, one a second
+        assert g.pop_due(float(k), 0.0).t == float(k)
+    assert len(g.pending) == 99 and g.pending.maxlen == QUEUE
 
 
 @pytest.fixture(scope='module')
@@ -57,7 +62,7 @@ def ship_runs():
         on = run_scenario(SHIP, SEED, 'asckf', duration=SPAN, cached=True, **ON)
     finally:
         reprocess.aided_start = original
-    off = run_scenario(SHIP, SEED, 'asckf', duration=SPAN, cached=True)     # the default
+    off = run_scenario(SHIP, SEED, 'asckf', duration=SPAN, cached=True, **OFF)
     return on, off, seen
 
 
@@ -89,7 +94,7 @@ def test_the_window_is_reprocessed_with_its_fixes_and_not_republished(ship_runs)
     heading is inside 3 sigma, and narrower than the stage started at the window's end
     (the same samples, used once more)."""
     on, off, _ = ship_runs
-    assert 'reprocessed_s' not in off.pipeline.coarse_info     # off by default
+    assert 'reprocessed_s' not in off.pipeline.coarse_info     # turned off
     assert on.pipeline.coarse_info['reprocessed_s'] == pytest.approx(60.0, abs=0.02)
     p = on.pipeline
     counts = p.gnss.counts

@@ -97,7 +97,8 @@ def test_imu_data_and_euler_are_the_csv_rows(car_run):
     known = np.isfinite(cols['qw'])
     assert 0 < known.sum() < len(known)
     csv_q = np.stack([cols[k] for k in ('qx', 'qy', 'qz', 'qw')], axis=1)
-    assert np.abs(q[known] - csv_q[known]).max() <= 5e-13      # the CSV's 12 decimals
+    # the CSV's 12 decimals: half a unit, and the round-off of the value itself (< 1)
+    assert np.abs(q[known] - csv_q[known]).max() <= 0.5e-12 + 4e-16
     cov = np.array([m.orientation_covariance for m in imu])
     assert (cov[~known, 0] == -1.0).all() and (q[~known] == (0, 0, 0, 1)).all()
     P = cov[known].reshape(-1, 3, 3)
@@ -122,7 +123,8 @@ def test_typed_status_follows_the_csv_phases(car_run):
     assert reasons[0] == 'waiting for IMU data' and reasons[-1] == ''
     # said when the batch holding the first such row is done: within a diagnostic period
     at = {p: lt for lt, m in msgs[f'{NODE}/phase'] for p in [m.data]}
-    for p in ('fine', 'aligned'):
+    assert 'aligned' in at
+    for p in set(at) & {'fine', 'aligned'}:     # a reprocessed window may skip 'fine'
         first = cols['t'][np.argmax(cols['phase'] == p)]
         assert first - 1e-6 <= at[p] <= first + 1.0
 

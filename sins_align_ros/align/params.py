@@ -116,12 +116,11 @@ ALIGNMENT_PARAMS = (
           'first sample and runs over its stored samples before the live ones, with a prior '
           'that does not count them twice (docs/coarse.md); false: it starts at the '
           'window\'s end'),
-    Param('coarse_reprocess_aided', False, 'with coarse_reprocess, a GNSS-aided fine filter '
-          'also starts at the window\'s first sample and runs over its samples and fixes: '
-          'aligned sooner (a navigation-grade ship under way 70 s instead of 136 s, a MEMS car '
-          '5 s after it starts to drive instead of 17 s), but off by default: it fails '
-          'integrity cells of tactical and navigation-grade cars and a flight '
-          '(docs/coarse.md)'),
+    Param('coarse_reprocess_aided', True, 'with coarse_reprocess, a GNSS-aided fine filter '
+          'also starts at the window\'s first sample and runs over its samples, fixes and '
+          'external headings: aligned sooner (a navigation-grade ship under way 70 s instead '
+          'of 136 s, a MEMS car 5 s after it starts to drive instead of 17 s); false: it '
+          'starts at the window\'s end (docs/coarse.md)'),
     Param('coarse_motion_s', 5.0, 'a coarse window that held coarse_min_duration of rest ends '
           'this long '
           'after GNSS shows the base start moving (the moving-base coarse alignment takes '

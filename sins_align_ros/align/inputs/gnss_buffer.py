@@ -105,8 +105,9 @@ class GnssBuffer:
 
         A GNSS-aided stage that starts at the coarse window's first sample (``t0``) runs
         over the window's fixes (:mod:`~..stages.reprocess`); they were history while the
-        window filled. The queue grows to hold them and what already waits. Returns the
-        number queued.
+        window filled. The queue grows to hold them and what already waits, and shrinks
+        back to :data:`QUEUE` as they are taken (:meth:`pop_due`). Returns the number
+        queued.
         """
         old = [f for f in self.pending if f[0] > t1 + 1e-9]
         back = [f for f in self.fixes if t0 + 1e-9 < f[0] <= t1 + 1e-9]
@@ -139,6 +140,8 @@ class GnssBuffer:
         """
         while self.due(t_now):
             t_f, lat, lon, h, pv = self.pending.popleft()
+            if self.pending.maxlen > QUEUE >= len(self.pending):   # the requeued are taken
+                self.pending = deque(self.pending, maxlen=QUEUE)
             if t_f <= t_start:
                 self.counts['before_start'] += 1
                 continue

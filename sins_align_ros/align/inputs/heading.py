@@ -167,7 +167,8 @@ class HeadingBuffer:
     def requeue(self, t0, t1):
         """Queue again the epochs stamped in (``t0``, ``t1``]: a stage reprocesses that span.
 
-        They go before those still queued (stamped after ``t1``), in stamp order.
+        They go before those still queued (stamped after ``t1``), in stamp order; the
+        queue grows to hold them and shrinks back to :data:`QUEUE` as they are taken.
         """
         again = [fix for fix in self.history if t0 < fix.t <= t1 + 1e-9]
         later = [fix for fix in self.pending if fix.t > t1 + 1e-9]
@@ -193,6 +194,8 @@ class HeadingBuffer:
         """Return the next usable queued epoch up to ``t_now`` (or None); stale ones counted."""
         while self.due(t_now):
             fix = self.pending.popleft()
+            if self.pending.maxlen > QUEUE >= len(self.pending):   # the requeued are taken
+                self.pending = deque(self.pending, maxlen=QUEUE)
             if fix.t <= t_start:
                 self.counts['before_start'] += 1
             elif t_now - fix.t > MAX_LAG_S:
