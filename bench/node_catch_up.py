@@ -13,12 +13,13 @@ dropped; a gap in the received stamps says where one was); the longest gap betwe
 outputs and when it fell; the catch-up time, from the window's last sample's due time to
 the first output after it whose latency is back under 20 ms; the worst latency.
 
-With ``--scenario ship_underway --filter asckf --aided-reprocess`` (a navigation-grade ship
-under way, GNSS position and velocity): the GNSS-aided stage runs over the window's samples
-and its fixes.
+With ``--scenario ship_underway --filter asckf`` (a navigation-grade ship under way, GNSS
+position and velocity): the GNSS-aided stage runs over the window's samples and its fixes
+(``coarse_reprocess_aided``, the default since session 47); ``--window-end`` starts it at
+the window's end instead (the default before).
 
 Usage: python bench/node_catch_up.py [--rate 1000] [--window 60] [--seconds 80]
-[--scenario NAME --filter NAME [--aided-reprocess]] [--out FILE]
+[--scenario NAME --filter NAME [--window-end]] [--out FILE]
 """
 import argparse
 import os
@@ -43,17 +44,18 @@ SCENARIO = 'static_navigation'
 CAUGHT_UP_MS = 20.0
 
 
-def params_yaml(folder, window, scenario=SCENARIO, fine_filter='auto', aided=False):
+def params_yaml(folder, window, scenario=SCENARIO, fine_filter='auto', window_end=False):
     """Write the node's parameter file (ROS layout, the window forced); return its path.
 
-    ``aided``: ``coarse_reprocess_aided`` on (a GNSS-aided stage runs over the window).
+    ``window_end``: ``coarse_reprocess_aided`` off (a GNSS-aided stage starts at the
+    window's end).
     """
     from sins_align_ros.eval.scenarios import named
     from sins_align_ros.sim.presets import alignment_params
     p = alignment_params(named(scenario), fine_filter)
     p.update(coarse_min_duration=float(window), coarse_duration=float(window))
-    if aided:
-        p['coarse_reprocess_aided'] = True
+    if window_end:
+        p['coarse_reprocess_aided'] = False
     lines = ['alignment_node:', '  ros__parameters:']
     lines += [f'    {k}: {v!r}' if isinstance(v, str) else f'    {k}: {v}' for k, v in p.items()]
     path = Path(folder) / 'catch_up.yaml'
@@ -71,7 +73,7 @@ def run(args, folder):
     assert pub.stdout.readline().strip() == 'ready'
     listener = node_load.Listener()
     log = open(Path(folder) / 'node.log', 'w')
-    yaml = params_yaml(folder, args.window, args.scenario, args.filter, args.aided_reprocess)
+    yaml = params_yaml(folder, args.window, args.scenario, args.filter, args.window_end)
     node = subprocess.Popen([sys.executable, '-m', 'sins_align_ros.ros.alignment_node',
                              '--ros-args', '--params-file', str(yaml)],
                             env=env, stdout=subprocess.DEVNULL, stderr=log)
@@ -113,8 +115,9 @@ def main(argv=None):
                     help='a named scenario (eval.scenarios), e.g. ship_underway: a GNSS-aided '
                          'stage reprocesses the window and its fixes')
     ap.add_argument('--filter', default='auto', help='fine_filter')
-    ap.add_argument('--aided-reprocess', action='store_true',
-                    help='coarse_reprocess_aided: the GNSS-aided stage runs over the window')
+    ap.add_argument('--window-end', action='store_true',
+                    help='coarse_reprocess_aided false: a GNSS-aided stage starts at the '
+                         'window\'s end')
     ap.add_argument('--out', default=str(ROOT / 'bench' / 'results' / 'node_catch_up.md'))
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as folder:
@@ -125,7 +128,7 @@ def main(argv=None):
         f'{args.window:g} --seconds {args.seconds:g}'
         + ('' if args.scenario == SCENARIO and args.filter == 'auto' else
            f' --scenario {args.scenario} --filter {args.filter}'
-           + (' --aided-reprocess' if args.aided_reprocess else ''))
+           + (' --window-end' if args.window_end else ''))
         + f'` on {machine_summary()}.', '',
         __doc__.split('\n\n', 1)[1].split('\n\nUsage')[0].replace('\n', ' '), '',
         '| IMU published | imu/data received | missing after (s of data) | longest output gap '
