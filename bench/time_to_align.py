@@ -15,14 +15,20 @@ import subprocess
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 
 import numpy as np
 
-from sins_align_ros.eval.errors import attitude_errors
-from sins_align_ros.eval.run import run_scenario
-from sins_align_ros.eval.scenarios import named
-from sins_align_ros.eval.limits import scenario_limits
-from sins_align_ros.sim.presets import scenario, starting_still, translates
+ROOT = Path(__file__).resolve().parents[1]
+# this checkout's package, not install/'s copy: that one looks for ../shared/data beside
+# install/ and found no fog_mems recording (session 47's run lost its fog rows so)
+sys.path.insert(0, str(ROOT))
+
+from sins_align_ros.eval.errors import attitude_errors  # noqa: E402
+from sins_align_ros.eval.run import run_scenario  # noqa: E402
+from sins_align_ros.eval.scenarios import named  # noqa: E402
+from sins_align_ros.eval.limits import scenario_limits  # noqa: E402
+from sins_align_ros.sim.presets import scenario, starting_still, translates  # noqa: E402
 
 #: (scenario, filter, what it is)
 CASES = (
