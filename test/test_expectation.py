@@ -173,7 +173,8 @@ def test_moving_base_forecast_waits_for_the_filter_then_runs_its_covariance_on()
     coarse = [e for t, ph, e in log if ph == 'coarse' and t > 15.0]
     assert coarse and all(math.isnan(e.t_aligned) and 'moving base' in e.note for e in coarse)
     fine = [(t, e) for t, ph, e in log if ph == 'fine']
-    assert len(fine) > 10 and all(e.basis == MOTION for _, e in fine)
+    # the fine phase lasts from the window's end (60 s) to aligned (70 s): two 5-s logs
+    assert len(fine) >= 2 and all(e.basis == MOTION for _, e in fine)
     assert all(abs(e.t_aligned - t_al) <= 0.1 * t_al + 1.0 for _, e in fine)
     assert all(e.sigma[2] == pytest.approx(math.radians(2.0), rel=0.03) for _, e in fine)
     done = [e for _, ph, e in log if ph == 'aligned']
