@@ -258,15 +258,18 @@ def _truth_euler(out, truth):
     return truth_euler_at(out.t, [t for t, _ in truth], [q for _, q in truth])
 
 
-def _outputs(args):
-    """Return ``(CSV paths, result bag paths)`` of ``--out``; ``ValueError`` if misused."""
+def _outputs(args, psins):
+    """Return ``(CSV paths, result bag paths)`` of ``--out``; ``ValueError`` if misused.
+
+    ``psins``: the input is a PSINS log (nothing to copy).
+    """
     bags = [p for p in args.out if Path(p).suffix.lower() == '.mcap']
     csvs = [p for p in args.out if p not in bags]
     if len(bags) > 1 or len(csvs) > 1:
         raise ValueError('--out takes at most one CSV and one .mcap result bag')
     if args.copy_input and not bags:
         raise ValueError('--copy-input needs a result bag: --out RESULT.mcap')
-    if args.copy_input and Path(args.input).suffix.lower() == '.imu':
+    if args.copy_input and psins:
         raise ValueError('--copy-input needs a rosbag2 input, not a PSINS log')
     return csvs, bags
 
@@ -294,16 +297,18 @@ def main(argv=None):
     node_values = {}
     try:
         values = load_parameters(args.params, args.set, log, node_values)
-        csvs, bags = _outputs(args)
+        psins = Path(args.input).suffix.lower() == '.imu'
+        csvs, bags = _outputs(args, psins)
     except (ValueError, OSError) as exc:
         print(f'sins_align_replay: error: {exc}', file=sys.stderr)
         return 2
-    psins = Path(args.input).suffix.lower() == '.imu'
     status, truth, bag = 0, None, None
     try:
         if bags:
             frame = 'imu' if psins else imu_frame_id(args.input, args.imu_topic)
-            bag = ResultBag(bags[0], node_values, values.get('coarse_duration', 60.0), frame)
+            bag = ResultBag(bags[0], node_values,
+                            values.get('coarse_duration', prm.defaults()['coarse_duration']),
+                            frame)
         if psins:
             out, pipe, truth = replay_psins(args.input, values, log, args.duration, bag)
         else:

@@ -30,6 +30,8 @@ OK, WARN, ERROR = 0, 1, 2
 #: ``hardware_id``, ``message`` and ``values`` ``[(key, text)]``
 StatusReport = namedtuple('StatusReport', 'level name hardware_id message values')
 
+#: the session's input-notice sources as /diagnostics names them
+FAULT_SOURCES = {'imu': 'imu/data_raw', 'gnss': 'gnss'}
 #: each input-fault reason is logged at most once per this many seconds (wall time)
 LOG_PERIOD_S = 5.0
 #: the longest /diagnostics message, characters (the rest: the value ``details``)

@@ -33,14 +33,12 @@ import numpy as np
 
 from ..align import params as prm
 from . import cdr
-from .diagnostic_report import PeriodReport
+from .diagnostic_report import FAULT_SOURCES, PeriodReport
 from .node_status import known_euler, typed_state
 from .odometry import OdometryFrame, odometry_bodies
 
 #: the node's default name: its private topics' namespace and the diagnostics' name
 NODE = '/alignment_node'
-#: input-fault sources as the node names them in /diagnostics
-_SOURCES = {'imu': 'imu/data_raw', 'gnss': 'gnss'}
 _TYPED = (('phase', 'std_msgs/msg/String'), ('reason', 'std_msgs/msg/String'),
           ('tilt_ready', 'std_msgs/msg/Bool'), ('heading_ready', 'std_msgs/msg/Bool'))
 
@@ -120,6 +118,8 @@ class ResultBag:
         self.odom = OdometryFrame()
         self.now, self.last_imu, self.next_report = None, None, None
         self.typed_last, self.accepted = {}, 0
+        #: the session's phase when the typed values were last written
+        self.typed_phase = None
 
     # -- what the replay calls -------------------------------------------------------------
     def pieces(self, t, k0, k1):
@@ -175,13 +175,14 @@ class ResultBag:
 
     def fault(self, source, key, text):
         """Count an input notice of the session for the period's report."""
-        self.report.faults.add(_SOURCES[source], key, text)
+        self.report.faults.add(FAULT_SOURCES[source], key, text)
 
     def after(self, session, imu_received=0):
         """Take the session after a call: restarts, the typed status, IMU counts.
 
-        A change of the typed status is logged at the last row's stamp, when the node,
-        having processed the batch, would publish it.
+        A change of phase is logged at the last row's stamp, when the node, having
+        processed the batch, would publish it; the other typed values change with the
+        next report, as on the node (its ``_drain``).
         """
         if self.last_imu is not None and self.now is not None:
             self.now = max(self.now, self.last_imu)
@@ -192,7 +193,8 @@ class ResultBag:
         self.report.imu[0] += imu_received
         self.report.imu[1] += accepted - self.accepted
         self.accepted = accepted
-        self._typed(session)
+        if session.phase != self.typed_phase:
+            self._typed(session)
 
     def close(self):
         """Complete the bag and move it into place (replacing a previous result bag)."""
@@ -233,8 +235,10 @@ class ResultBag:
             self.writer.write(conn, t_ns, raw)
 
     # -- the messages ----------------------------------------------------------------------
-    def _typed(self, session, force=False):
-        state = typed_state(session.status(), stopped=False)
+    def _typed(self, session, s=None, force=False):
+        """Write the typed values that changed; return them (``s``: the status, if read)."""
+        state = typed_state(session.status() if s is None else s, stopped=False)
+        self.typed_phase = session.phase
         stamp_ns = _stamp(self.now)[1]
         for name, value in state.items():
             if force or self.typed_last.get(name) != value:
@@ -242,17 +246,18 @@ class ResultBag:
                 self.writer.write(conn, stamp_ns,
                                   self.ts.serialize_cdr(self.ts.types[kind](data=value), kind))
                 self.typed_last[name] = value
+        return state
 
     def _diagnostics(self, session):
         s = session.status()
-        self._typed(session)
+        state = self._typed(session, s)
         age = None if self.last_imu is None else self.now - self.last_imu
         counts = {'imu': session.imu_accepted}
         rep = self.report.status(f'{NODE}: alignment', self.p['imu_frame_id'] or 'imu',
-                                 session, s, typed_state(s, stopped=False), self.p, age, None,
-                                 counts, self.odom)
+                                 session, s, state, self.p, age, None, counts, self.odom)
         T = self.ts.types
-        sec, ns = divmod(_stamp(self.now)[1], 10 ** 9)
+        stamp_ns = _stamp(self.now)[1]
+        sec, ns = divmod(stamp_ns, 10 ** 9)
         status = T['diagnostic_msgs/msg/DiagnosticStatus'](
             level=rep.level, name=rep.name, message=rep.message, hardware_id=rep.hardware_id,
             values=[T['diagnostic_msgs/msg/KeyValue'](key=k, value=v) for k, v in rep.values])
@@ -260,7 +265,7 @@ class ResultBag:
             header=T['std_msgs/msg/Header'](
                 stamp=T['builtin_interfaces/msg/Time'](sec=sec, nanosec=ns), frame_id=''),
             status=[status])
-        self.writer.write(self.c_diag, _stamp(self.now)[1],
+        self.writer.write(self.c_diag, stamp_ns,
                           self.ts.serialize_cdr(arr, 'diagnostic_msgs/msg/DiagnosticArray'))
 
     def _odometry(self, out, w_b, nav, stamps, child):

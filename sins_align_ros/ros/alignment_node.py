@@ -33,7 +33,7 @@ from ..align import AlignmentSession
 from ..io.node_status import NO_IMU, imu_stopped, typed_state
 from ..nav import kernels
 from .alignment_params import PARAMS, AlignmentParams
-from ..io.diagnostic_report import PeriodReport
+from ..io.diagnostic_report import FAULT_SOURCES, PeriodReport
 from .diagnostics import CallbackErrors, status_message
 from .inputs import feed_imu, fix_args, heading_args, subscribe, velocity_args
 from .outputs import RowPublisher, create_publishers
@@ -42,7 +42,6 @@ from .status import TypedStatus
 
 __all__ = ['PARAMS', 'AlignmentShell', 'AlignmentNode', 'main']
 #: how the input sources are named in log lines and diagnostics
-_SOURCES = {'imu': 'imu/data_raw', 'gnss': 'gnss'}
 
 
 class AlignmentShell:
@@ -137,7 +136,7 @@ class AlignmentShell:
             self.report.restarted(text)
             self.rows.restart()
         for source, key, text in self.session.notices():
-            self.report.faults.add(_SOURCES[source], key, text)
+            self.report.faults.add(FAULT_SOURCES[source], key, text)
         if self.session.phase != self._typed_phase or self.typed.last.get('reason') == NO_IMU:
             self._update_typed()
 
