@@ -13,7 +13,7 @@ import pytest
 from sins_align_ros.align.inputs.gnss_buffer import GnssBuffer
 from sins_align_ros.align.inputs.installation import Installation
 from sins_align_ros.align.inputs.motion import (DRIVE_DV_MPS, DRIVE_TURN_RAD, NEEDS_GNSS,
-                                                Motion, Onset,
+                                                TRACK_S, Motion, Onset,
                                                 cannot_start, choose_filter, gnss_motion,
                                                 imu_translation, judge, watch)
 from sins_align_ros.align.params import defaults
@@ -84,6 +84,101 @@ def test_gnss_speed_against_the_speed_threshold_and_the_lever_arm():
     assert gnss_motion(_gnss((5.0, 0.0)), cfg, tt, arm_speed=9.0) == (False, 0.0)
     # no GNSS: nothing is judged
     assert gnss_motion(GnssBuffer(), cfg, tt) == (False, None)
+
+
+def _fixes(speed, rate, t1, white=0.0, markov=0.0, tau=60.0, seed=0, t0=0.0):
+    """Fixes of a base moving north-east at ``speed`` m/s from ``t0`` to ``t1`` at ``rate`` Hz.
+
+    Position error: ``white`` m white plus ``markov`` m Gauss-Markov (``tau`` s) per axis,
+    from generator ``seed``.
+    """
+    rng = np.random.default_rng(seed)
+    g, dt = GnssBuffer(), 1.0 / rate
+    a = math.exp(-dt / tau)
+    m = np.zeros(2)
+    R_M, R_N = earth.radii(LAT)
+    for t in np.arange(t0, t1 + 1e-9, dt):
+        m = a * m + markov * math.sqrt(1.0 - a * a) * rng.standard_normal(2)
+        d = speed * (t - t0) / math.sqrt(2.0) + m + white * rng.standard_normal(2)
+        g.position_fix(t, math.degrees(LAT + d[1] / R_M),
+                       math.degrees(d[0] / (R_N * math.cos(LAT))), 0.0, None, None, False)
+    return g
+
+
+def test_the_track_of_the_fixes_gives_their_speed_and_the_slope_sigma():
+    """Noise-free fixes: the slope is the speed; its sigma the least-squares slope's."""
+    g = _fixes(1.0, 2.5, 60.0)
+    v, sig, k = g.track_speed(60.0, 30.0, 1.5, 1e-9, 60.0)
+    n = 75                          # fixes in (30, 60] at 2.5 Hz
+    assert v == pytest.approx(1.0, rel=1e-5)    # small-area ENU offsets
+    assert sig == pytest.approx(1.5 / math.sqrt(0.4 ** 2 * n * (n * n - 1) / 12.0), rel=1e-9)
+    assert k == 4.0                 # no scatter: the configured noise
+    assert g.track_speed(60.0, 90.0, 1.5, 0.0, 60.0) == (None, None, None)   # 60 s of 90
+
+
+def test_a_robot_at_one_metre_per_second_behind_a_consumer_receiver_is_seen_moving():
+    """1 m/s, positions only at 2.5 Hz, 1.5 m: the 3-s speed's 4 sigma is 2.8 m/s.
+
+    The slope over 30 s has a 1-sigma of 0.02 m/s (white) and 0.04 m/s (a 1.5-m wander
+    over 60 s): the threshold is motion_speed_mps, 0.5 m/s, 25 white sigmas below 1 m/s.
+    """
+    cfg = _cfg(gnss_pos_sigma_m=1.5)
+    g = _fixes(1.0, 2.5, 60.0, white=1.5, seed=7)
+    assert not gnss_motion(_fixes(1.0, 2.5, 60.0), cfg, np.array([57.0, 60.0]))[0]
+    moving, speed = gnss_motion(g, cfg, np.array([57.0, 60.0]), track_s=(30.0,))
+    assert moving and speed == pytest.approx(1.0, abs=0.2)
+    assert watch(g, cfg, 60.0, False, False) is not None
+    # the coarse window's judgement reads the track over the whole window
+    m = judge(g, cfg, _still())
+    assert m.gnss and m.moving
+
+
+def test_a_still_base_whose_receiver_wanders_three_times_its_sigma_is_not_moving():
+    """A 3-m wander over 60 s, told 1 m: the 30-s slope's sigma is 0.08 m/s per axis.
+
+    The threshold 0.5 m/s is 6 of them: the track takes no epoch of an hour for motion
+    that the 3-s speed does not (that one sees this first-order wander's fast steps).
+    """
+    cfg = _cfg(gnss_pos_sigma_m=1.0)
+    g = _fixes(0.0, 1.0, 3600.0, white=0.5, markov=3.0, seed=3)
+    added = [t for t in np.arange(30.0, 3600.0, 1.0)
+             if gnss_motion(g, cfg, np.array([t - 3.0, t]), track_s=TRACK_S)[0]
+             and not gnss_motion(g, cfg, np.array([t - 3.0, t]))[0]]
+    assert added == []
+
+
+def test_the_antennas_swing_is_taken_off_the_track():
+    """A still base whose mast antenna (20 m arm) drifts 15 m north over a 30-s span.
+
+    The track's slope is 0.5 m/s above motion_speed_mps; twice the arm over the span
+    (1.33 m/s) is taken off: not moving. Without the arm it is motion.
+    """
+    cfg = _cfg(gnss_pos_sigma_m=0.1)
+    g = GnssBuffer()
+    R_M = earth.radii(LAT)[0]
+    for t in np.arange(1.0, 31.5, 1.0):
+        g.position_fix(t, math.degrees(LAT + 0.52 * t / R_M), 0.0, 0.0, None, None, False)
+    tt = np.array([28.0, 31.0])
+    assert g.track_speed(31.0, 30.0, 0.1, 0.0, 60.0)[0] == pytest.approx(0.52, rel=1e-4)
+    assert gnss_motion(g, cfg, tt, track_s=(30.0,), arm_m=20.0)[0] is False
+    assert gnss_motion(g, cfg, tt, track_s=(30.0,), arm_m=0.0)[0] is True
+
+
+def test_a_receiver_noisier_than_configured_is_judged_by_its_scatter():
+    """seed 003's 10-m fixes at 1 Hz told the default 1 m, a still car: over 10 s the
+    slope's noise is 3 m/s, not 0.3; the scatter about the line sets it, with the bound
+    of an estimated noise (16 degrees of freedom: 5.2 sigma). Over an hour of 10-s
+    windows, no motion; a car at 15 m/s is still seen."""
+    cfg = _cfg(gnss_pos_sigma_m=1.0)
+    g = _fixes(0.0, 1.0, 3600.0, white=10.0, seed=5)
+    k = g.track_speed(10.0, 10.0, 1.0, 0.0, 60.0)[2]
+    assert k == pytest.approx(math.sqrt(16 * (math.exp(1.0) - 1.0)), rel=1e-12)
+    moving = [t for t in np.arange(10.0, 3600.0, 10.0)
+              if gnss_motion(g, cfg, np.array([t - 10.0, t]), track_s=(10.0,))[0]
+              and not gnss_motion(g, cfg, np.array([t - 10.0, t]))[0]]
+    assert len(moving) <= 1          # 359 windows at a tail of e^-8 (3e-4) each
+    fast = _fixes(15.0, 1.0, 20.0, white=10.0, seed=5)
+    assert gnss_motion(fast, cfg, np.array([10.0, 20.0]), track_s=(10.0,))[0]
 
 
 def test_noisy_gnss_velocity_raises_the_threshold_to_four_sigma():

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from sins_align_ros.align.engines import still_watch
+from sins_align_ros.align.stages import coarse_stage
 from sins_align_ros.align.engines.still_watch import (MOVING_WITHOUT_GNSS, N_GATED, Coast,
                                                       MotionWatch, cruise_floor)
 from sins_align_ros.eval.integrity import run_integrity
@@ -220,3 +221,29 @@ def test_grade_table_has_the_robot_scenario():
     assert 0.9 < np.median(speed[t > 100.0]) < 1.1
     turns = np.abs(np.diff(np.unwrap(k.euler[:, 2])))
     assert np.degrees(turns.sum()) > 1000.0
+
+
+def test_auto_without_gnss_waits_a_minute_before_taking_a_short_window_for_rest():
+    """The car preset's 10-s window, the car under way in town, its receiver silent.
+
+    Over 10 s a car pulling away integrates to a straight line, as a tilt does; the
+    still-base filter started on it published a pitch 11 deg off under a 0.5-deg sigma.
+    Held to a minute (``coarse_stage.DRIVE_TEST_S``) the window shows the drive: no
+    attitude, and the reason asks for GNSS. A still filter named keeps the 10 s.
+    """
+    sc = scenario('car_consumer', duration=350.0)
+    data = without_gnss(simulate(sc, 2))    # without the hold: 36 % of rows beyond 3 sigma
+    told = {'coarse_duration': 10.0, 'coarse_method': 'inertial_frame'}
+    run = run_pipeline(told, data)
+    r = run_integrity(run, sc.imu_rate_hz)
+    assert not r['silent'], r['why']
+    assert not np.any(np.isfinite(run.out.sigma[:, 0]))
+    assert any('there is no GNSS' in w for w in run.pipeline.warnings)
+    # a still IMU: auto waits the minute, reduced7 named does not
+    still = without_gnss(simulate(scenario('static_mems', duration=80.0), 1))
+    first = {}
+    for ff in ('auto', 'reduced7'):
+        out = run_pipeline({**told, 'fine_filter': ff, 'initial_latitude_deg': 34.0}, still).out
+        first[ff] = out.t[np.flatnonzero(out.phase != 'coarse')[0]]
+    assert first['auto'] == pytest.approx(coarse_stage.DRIVE_TEST_S, abs=0.02)
+    assert first['reduced7'] == pytest.approx(10.0, abs=0.02)

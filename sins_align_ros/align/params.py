@@ -105,7 +105,8 @@ ALIGNMENT_PARAMS = (
     Param('coarse_method', 'auto', 'coarse alignment: analytic (still base), inertial_frame '
           '(sway, disturbance) or auto (picks by detecting motion)', choices=COARSE_METHODS),
     Param('coarse_duration', 60.0, 'coarse alignment time, s (at most: see '
-          'coarse_min_duration and coarse_motion_s)', 1.0, 3600.0),
+          'coarse_min_duration and coarse_motion_s; with fine_filter auto and no GNSS at all, '
+          'at least 60 s: only over a minute can the IMU tell a drive from rest)', 1.0, 3600.0),
     Param('coarse_min_duration', 20.0, 'shortest coarse window, which the sensor self-check '
           'reads: a still base\'s window ends once it has lasted this long and its attitude, '
           'with the noise the samples show, is good enough for the fine filter '

@@ -211,7 +211,7 @@ class AlignmentPipeline:
             self.onset.fix(self.gnss, self.cfg, t)
         if self.fine is not None:
             reason = motion.watch(self.gnss, self.cfg, t, self.aided, self.fine.heading_known,
-                                  self.install.speed_since(t - 3.0))
+                                  self.install.speed_since(t - 3.0), self.install.arm_m)
             if reason is not None:
                 self._diverged(reason, reuse=True)
 
@@ -301,6 +301,8 @@ class AlignmentPipeline:
                 if j > i:
                     c.t_last = t[j - 1]
                 w.judge(c.t_first, self.cfg, self.noise, self.gnss, still)
+                w.hold_for_drive_test(c.t_first, self.cfg, self.gnss.seen, self.noise,
+                                      self._latitude_or_equator())
                 out = unknown(t[i:j], COARSE)
                 if w.full:
                     self._finish_coarse()
@@ -374,6 +376,11 @@ class AlignmentPipeline:
         self._diverged(reason)
 
     # -- stages ---------------------------------------------------------------------------
+    def _latitude_or_equator(self):
+        """Latitude (rad) as known now (GNSS or the site), 0 where it is not."""
+        return self.gnss.position(self.cfg, False)[0][0] if self.gnss.latitude_known(self.cfg) \
+            else 0.0
+
     def _choose_position(self):
         self.position, self.position_source = self.gnss.position(self.cfg, self.aided)
 

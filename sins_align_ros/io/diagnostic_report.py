@@ -130,7 +130,8 @@ def alignment_status(name, hardware_id, s, state, period, coarse_duration, imu_a
         level = WARN
         msgs.append('waiting for IMU data on imu/data_raw')
     elif phase == 'coarse':
-        msgs.append(f"coarse alignment {s['elapsed_s']:.0f}/{coarse_duration:.0f} s")
+        window = s.get('coarse_window_s', coarse_duration)
+        msgs.append(f"coarse alignment {s['elapsed_s']:.0f}/{window:.0f} s")
     else:
         head = f'{phase}, {reason}' if reason and reason != NO_IMU else phase
         sig = [_deg(s['sigma_roll_deg']), _deg(s['sigma_pitch_deg']),

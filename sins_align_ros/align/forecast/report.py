@@ -26,6 +26,8 @@ def pipeline_status(p):
          'catching_up': p.catch_up is not None}
     if p.catch_up is not None:
         s['catch_up_left_s'] = p.catch_up.left_s
+    if p.fine is None:          # the coarse window's length (coarse_duration, or held)
+        s['coarse_window_s'] = p.window.duration
     if p.position is not None:
         s['latitude_deg'] = p.position[0] / DEG
     if fine is not None:

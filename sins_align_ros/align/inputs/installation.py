@@ -85,6 +85,11 @@ class Installation:
         other.no_arm = not np.any(l_v)
         return other
 
+    @property
+    def arm_m(self):
+        """Length of the lever arm, m."""
+        return float(np.linalg.norm(self.l_v))
+
     # -- the IMU -------------------------------------------------------------------------
     def to_vehicle(self, x_s):
         """Turn vectors (N, 3) or (3,) from the IMU frame into the vehicle frame."""

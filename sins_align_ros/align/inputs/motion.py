@@ -31,6 +31,8 @@ import numpy as np
 
 from ...nav.coarse import velocity_integral_b0
 
+#: spans (s) over which a running filter's watch judges the fixes' track (:func:`watch`)
+TRACK_S = (30.0,)
 #: the integrated specific force departs from a quadratic in time by more than this, m/s
 DRIVE_DV_MPS = 1.0
 #: the body turns by more than this over the window, rad
@@ -41,19 +43,40 @@ NEEDS_GNSS = ('the IMU shows the base moving (it {what}) and there is no GNSS: a
               'or an external heading; coarse alignment starts again')
 
 
-def gnss_motion(gnss, cfg, tt, arm_speed=0.0):
+def gnss_motion(gnss, cfg, tt, arm_speed=0.0, track_s=(), arm_m=0.0):
     """Return ``(moving, speed)`` over stamps ``tt`` (``speed`` m/s, None without GNSS).
 
     ``gnss`` is the :class:`~.gnss_buffer.GnssBuffer`, ``cfg`` the parameter values;
     ``arm_speed`` (m/s) the largest speed of the GNSS antenna about the IMU over the span
     (a lever arm on a rolling mast): the IMU moves at least ``speed - arm_speed``, and
     that is what is judged (and returned).
+
+    ``track_s``: spans (s) ending at ``tt[-1]`` over which the fixes' track is judged too
+    (:meth:`~.gnss_buffer.GnssBuffer.track_speed`) where the speed over ``tt`` does not
+    show motion: a speed from positions over a few epochs is too noisy to see a robot at
+    1 m/s behind a consumer receiver (1.5 m: 4 sigma is 2.8 m/s at 2.5 Hz), the slope over
+    10 s is not (0.5 m/s, its time-correlated wander counted: the configured
+    ``gnss_position_markov_sigma_m``, else the position sigma itself; the fixes' scatter
+    about their line where it exceeds the configured sigma). The antenna's swing about
+    the IMU, at most twice the lever arm ``arm_m`` (m) over a span, is taken off.
     """
-    speed, v_sig = gnss.speed_over(tt, *gnss.sigmas_over(tt, cfg))
-    if speed is None:
-        return False, None
-    speed = max(speed - arm_speed, 0.0)
-    return speed > max(cfg['motion_speed_mps'], 4.0 * v_sig), speed
+    sigmas = gnss.sigmas_over(tt, cfg)
+    speed, v_sig = gnss.speed_over(tt, *sigmas)
+    if speed is not None:
+        speed = max(speed - arm_speed, 0.0)
+        if speed > max(cfg['motion_speed_mps'], 4.0 * v_sig):
+            return True, speed
+    for span in track_s:
+        v, sig, k = gnss.track_speed(tt[-1], span, sigmas[1],
+                                     cfg['gnss_position_markov_sigma_m'],
+                                     cfg['gnss_position_markov_tau_s'])
+        if v is None:
+            continue
+        v = max(v - 2.0 * arm_m / span, 0.0)
+        if v > max(cfg['motion_speed_mps'], k * sig):
+            return True, v
+        speed = v if speed is None else max(speed, v)
+    return False, speed
 
 
 def choose_filter(cfg, moving):
@@ -63,17 +86,18 @@ def choose_filter(cfg, moving):
     return cfg['auto_moving_filter' if moving else 'auto_still_filter']
 
 
-def watch(gnss, cfg, t, aided, heading_known, arm_speed=0.0):
+def watch(gnss, cfg, t, aided, heading_known, arm_speed=0.0, arm_m=0.0):
     """Return why a running filter must restart now that GNSS shows motion, or None.
 
     A stationary filter cannot take motion; an aided filter started at rest without a
     heading (a gyro that cannot find north) restarts so that its coarse stage takes the
-    heading from the GNSS track. ``t``: the stamp of the latest GNSS message;
-    ``arm_speed`` as :func:`gnss_motion`'s.
+    heading from the GNSS track. ``t``: the stamp of the latest GNSS message; ``arm_speed``
+    and ``arm_m`` as :func:`gnss_motion`'s; the fixes' track over :data:`TRACK_S` is
+    judged too.
     """
     if aided and heading_known:
         return None
-    moving, speed = gnss_motion(gnss, cfg, np.array([t - 3.0, t]), arm_speed)
+    moving, speed = gnss_motion(gnss, cfg, np.array([t - 3.0, t]), arm_speed, TRACK_S, arm_m)
     if not moving:
         return None
     if not aided:
@@ -113,10 +137,13 @@ def judge(gnss, cfg, window, install=None):
     """Return the :class:`Motion` of the coarse ``window`` (t, dtheta, dv, dt).
 
     ``install``: the :class:`~.installation.Installation`, whose lever arm's speed over
-    the window is taken off the GNSS speed (:func:`gnss_motion`).
+    the window is taken off the GNSS speed (:func:`gnss_motion`). The fixes' track over
+    the whole window is judged too.
     """
     arm = 0.0 if install is None else install.speed_bound(window[1] / window[3][:, None])
-    moving, speed = gnss_motion(gnss, cfg, window[0], arm)
+    tt = window[0]
+    moving, speed = gnss_motion(gnss, cfg, tt, arm, (float(tt[-1] - tt[0]),),
+                                0.0 if install is None else install.arm_m)
     return Motion(moving, speed, None if moving else imu_translation(window))
 
 

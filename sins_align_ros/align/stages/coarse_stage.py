@@ -17,7 +17,7 @@ import numpy as np
 from ...models.stationary import sees_earth_rate
 from ...nav import coarse, earth
 from ...nav.frames import dcm_to_euler, euler_to_dcm
-from ...units import DEG, DPH
+from ...units import DEG, DPH, DPSH
 from .noise_estimates import difference_density
 
 
@@ -48,6 +48,14 @@ class CoarseResult:
     warnings: list = field(default_factory=list)
     sigma_linear: np.ndarray = None
     v_n_start: np.ndarray = None
+
+
+#: the shortest window over which ``auto`` without GNSS takes the IMU's "no drive" for
+#: rest, s (:meth:`CoarseWindow.hold_for_drive_test`; the drive test's window)
+DRIVE_TEST_S = 60.0
+#: gyro noise (deg/sqrt(h)) above which :meth:`CoarseWindow.hold_for_drive_test` holds:
+#: the tactical class's upper edge (``grade_check``), above it MEMS triads
+HOLD_GYRO_NOISE_DPSH = 0.15
 
 
 class CoarseWindow:
@@ -114,6 +122,31 @@ class CoarseWindow:
         """
         if self.t_check is None and still and cfg['coarse_min_duration'] < self.duration:
             self.t_check = t_first + cfg['coarse_min_duration']
+
+    def hold_for_drive_test(self, t_first, cfg, gnss_seen, noise, lat):
+        """Keep a full window open to :data:`DRIVE_TEST_S` where ``auto`` has no GNSS at all.
+
+        Without GNSS only the IMU can tell a drive from rest
+        (:func:`~..inputs.motion.imu_translation`), and over a short window it cannot: a car
+        pulling away at 1.4 m/s^2 for 10 s integrates to a straight line, as a tilt of 8
+        deg does, and the still-base filter started on it published that tilt under a
+        0.5-deg sigma (the car preset's 10-s window on car_consumer without its receiver:
+        pitch 11 deg off at 20 sigma). Over a minute a drive's speed changes and turns
+        show. Held only for a gyro that cannot find north at rest (the configured bias,
+        or the noise the samples show above :data:`HOLD_GYRO_NOISE_DPSH`, the tactical
+        class's edge: the vehicle IMUs): a tactical or navigation-grade gyro still ends
+        its window when it is good enough, the still base of issue 46. ``t_first``: where
+        the window began; ``gnss_seen``: a fix or velocity has come; ``noise`` the
+        configured model; ``lat`` rad. ``fine_filter`` other than ``auto`` (a still-base
+        filter named) declares a base at rest and keeps its window.
+        """
+        if not (self.full and not gnss_seen and cfg['fine_filter'] == 'auto'
+                and self.t_end is None and self.T < DRIVE_TEST_S - 1e-9):
+            return
+        seen = seen_noise(self.arrays(t_first), noise)
+        if sees_earth_rate(lat, noise) and seen.gyro_arw <= HOLD_GYRO_NOISE_DPSH * DPSH:
+            return
+        self.duration, self.ended, self.t_check = DRIVE_TEST_S, False, math.inf
 
     def judge(self, t_first, cfg, noise, gnss, still):
         """End the window at a due check if its attitude is good enough (:func:`good_enough`).

@@ -30,6 +30,7 @@ from ..engines.base import AidedEngine, StillEngine
 from .aligned_gate import SettleTest
 from ..engines.gnss_gate import FilterDiverged
 from ..engines.still_watch import StillWatch
+from .coarse_stage import DRIVE_TEST_S
 from ..inputs.imu_input import intervals
 from ..output import Rows, one_row
 from ...units import DPH
@@ -49,7 +50,8 @@ class StillStepping:
         #: the epochs' corrections (:class:`~.aligned_gate.SettleTest`)
         self.settle = SettleTest(stage.t0)
         #: whether the base still rests (:mod:`~..engines.still_watch`)
-        self.still = StillWatch(self.engine, cfg['fine_update_hz'], cfg['coarse_duration'],
+        self.still = StillWatch(self.engine, cfg['fine_update_hz'],
+                                max(cfg['coarse_duration'], DRIVE_TEST_S),
                                 cfg['gyro_bias_instability_dph'] * DPH)
 
     @property
