@@ -9,8 +9,9 @@ at all) on the same data: each arm gets exactly its file, as the node would. A
 scenario and rates, as ``simulator_node`` would publish them).
 
 Scenario keys: a ``sim.presets`` name (``name@grade``: with the IMU of that sensor grade),
-``~nognss`` appended for the same without a receiver; a simulator YAML in config/ (its
-scenario at its rates); ``fog_mems``, the
+``~nognss`` appended for the same without a receiver, ``~compass`` for the same with a
+GNSS compass (:data:`COMPASS_SIGMA_DEG` at 1 Hz, in both arms); a simulator YAML in config/
+(its scenario at its rates); ``fog_mems``, the
 real MEMS car of ``../shared/data`` (one run: the data are the data), judged as
 ``bench/defaults.py`` judges it (``car_stats``: the errors less the 0.3 deg mounting
 tolerance).
@@ -58,6 +59,8 @@ from sins_align_ros.eval.run import run_pipeline  # noqa: E402
 from sins_align_ros.eval.scenarios import simulate  # noqa: E402
 from sins_align_ros.io.sim_messages import simulated_scenario  # noqa: E402
 from sins_align_ros.nav.frames import dcm_to_euler  # noqa: E402
+from sins_align_ros.sim.gnss import heading_measurements  # noqa: E402
+from sins_align_ros.sim.presets import alignment_params  # noqa: E402
 from sins_align_ros.units import DEG  # noqa: E402
 
 CONFIG = ROOT / 'config'
@@ -69,6 +72,12 @@ SCENARIOS_OF = {
         'written for, seed 003\'s car, a car in town with RTK that stands still first (the '
         'simulated kin of issue 44\'s real RTK drive) and one with raw AHRS triads and a '
         'consumer receiver'),
+    'alignment_robot_mems.yaml': (
+        ('robot_lot', 'robot_skid', 'robot_skid_rotated'),
+        'a small ground robot at about 1 m/s with frequent turns: a MEMS IMU still first '
+        'with a consumer receiver (position and velocity at 5 Hz); raw AHRS triads on a '
+        'vibrating skid-steer chassis never still, with positions only at 2.5 Hz; the same '
+        'with the IMU turned as robot_localization\'s test robot'),
     'alignment_stationary.yaml': (
         ('static_navigation~nognss', 'static_tactical~nognss', 'simulator_seed002.yaml',
          'simulator_ship_sway.yaml'),
@@ -83,6 +92,14 @@ SCENARIOS_OF = {
 # and removed: no better than the defaults (bench/results/usv_vbch_preset.md)
 #: seconds simulated where a scenario's own run is longer than the benchmark needs
 DURATION_S = {'simulator_seed000.yaml': 600.0}
+#: scenario key suffix: the vehicle carries a GNSS compass (an external heading at 1 Hz)
+COMPASS = '~compass'
+#: the compass's white noise, deg: a dual-antenna receiver on a 1-2 m baseline
+COMPASS_SIGMA_DEG = 0.2
+#: parameters of an installation, set from the scenario in every arm (:func:`installation`)
+INSTALLATION = ('gnss_lever_arm_m', 'imu_mounting_rpy_deg')
+#: the verdict of a preset that sets only an installation and loses nothing
+INSTALLATION_ONLY = 'the defaults (installation only)'
 FIRST_SEED = 1
 #: simulation cache of this benchmark (``--cache``)
 CACHE = Path(os.environ.get('TMPDIR', '/tmp')) / 'sins_align_presets_cache'
@@ -107,6 +124,8 @@ def scenario_of(key):
     """Build scenario ``key``: a preset name or a ``simulator_*.yaml`` (None for fog_mems)."""
     if key == 'fog_mems':
         return None
+    if key.endswith(COMPASS):
+        return scenario_of(key[:-len(COMPASS)])
     if key.endswith('~nognss'):
         sc = scenario_of(key[:-len('~nognss')])
         sc.gnss = None
@@ -122,6 +141,34 @@ def scenario_of(key):
     if p.get('gnss_rate_hz') and sc.gnss is not None:
         sc.gnss = replace(sc.gnss, rate_hz=float(p['gnss_rate_hz']))
     return sc
+
+
+def installation(sc):
+    """Return scenario ``sc``'s installation parameters (lever arm, IMU mounting), a dict.
+
+    They describe where the sensors are on the vehicle, which every user sets whatever
+    else they keep at the defaults: each arm gets them, replacing a preset's placeholders.
+    """
+    told = alignment_params(sc, 'auto')
+    return {k: told[k] for k in INSTALLATION if k in told}
+
+
+def compass_epochs(data, seed):
+    """Return a GNSS compass's epochs on ``data``'s vehicle: 1 Hz, :data:`COMPASS_SIGMA_DEG`."""
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 23]))
+    return heading_measurements(data.imu.t, data.imu.euler[:, 2],
+                                np.radians(COMPASS_SIGMA_DEG), 1.0, rng)
+
+
+def installation_only(preset):
+    """Tell whether ``preset`` sets nothing but an installation (and frame names).
+
+    Such a file is the node's defaults with the places a user fills in (the platforms
+    where no tuning beat the defaults): measured, its verdict is :data:`INSTALLATION_ONLY`
+    when it has no loss.
+    """
+    values, _ = split_node_params(load_yaml(CONFIG / preset))
+    return set(values) <= set(INSTALLATION)
 
 
 def arms(preset, ablate=False):
@@ -161,9 +208,10 @@ def run_job(job):
     key, seed, todo, cached = job
     sc = scenario_of(key)
     data = simulate_cached(sc, seed, CACHE) if cached else simulate(sc, seed)
+    heading = compass_epochs(data, seed) if key.endswith(COMPASS) else None
     res = {}
     for arm, params in todo:
-        run = run_pipeline(params, data)
+        run = run_pipeline({**params, **installation(sc)}, data, heading=heading)
         res[arm] = sim_run(run, sc.imu_rate_hz)
         res[arm]['ran'] = run.pipeline.status()['fine_filter']
     return res
@@ -252,7 +300,9 @@ def compare(p, d):
     of any loss, a mean final heading 1-sigma 10 % smaller, a median time to ``aligned``
     10 % shorter. A
     preset is **better** when it has no loss on any of its scenarios and a gain on at
-    least one, else **no better**.
+    least one, else **no better**; a preset that sets only an installation (lever arm,
+    mounting: the scenario's in both arms) and loses nothing is **the defaults
+    (installation only)**.
     """
     losses, gains = [], []
 
@@ -343,7 +393,10 @@ def main(argv=None):
         f'through the whole pipeline on scenarios of its kind, {args.runs} seeded runs '
         f'each (seeds from {FIRST_SEED}; the real fog_mems car: one run), against the '
         'node\'s defaults (no parameter at all) on the same data. A `simulator_*.yaml` '
-        'gives the data of the presets it pairs with (its scenario at its rates).',
+        'gives the data of the presets it pairs with (its scenario at its rates). A '
+        'scenario\'s installation (GNSS lever arm, IMU mounting) is set in both arms, '
+        'replacing a preset\'s placeholders: every user sets theirs. `~compass`: both arms '
+        f'get a GNSS compass, {COMPASS_SIGMA_DEG} deg white at 1 Hz.',
         '**heading RMS**: final heading (up) error over the runs publishing a heading at '
         'the end; **while published**: over every 1-s sample after coarse alignment with '
         'a published heading (fog_mems: against the FOG reference); **tilt RMS**: final '
@@ -376,7 +429,8 @@ def main(argv=None):
                     losses += [f'{key}: {x}' for x in lo]
                     gains += [f'{key}: {x}' for x in ga]
         better = not losses and bool(gains)
-        verdicts[pre] = 'better' if better else 'no better'
+        verdicts[pre] = ('better' if better else INSTALLATION_ONLY if installation_only(pre)
+                         and not losses else 'no better')
         lines += ['', 'Heading RMS (deg) over the 1-s rows both publish, preset against '
                   'defaults: ' + '; '.join(common) + '.',
                   '', f'**Verdict: {verdicts[pre]}.** Losses: '

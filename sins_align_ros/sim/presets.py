@@ -449,6 +449,10 @@ _FACTORIES = {
     'seed003_car_rotated': lambda: _installed(
         _car, 'seed003_car_rotated', 'IMU mounted turned as robot_localization\'s test robot '
         '(+90 deg about x, -90 deg about z)', imu_mounting_rpy_deg=ROBOT_IMU_MOUNTING_RPY_DEG),
+    'robot_skid_rotated': lambda: _installed(
+        _robot_skid, 'robot_skid_rotated', 'IMU mounted turned as robot_localization\'s test '
+        'robot (+90 deg about x, -90 deg about z)',
+        imu_mounting_rpy_deg=ROBOT_IMU_MOUNTING_RPY_DEG),
 }
 #: names accepted by :func:`scenario`
 SCENARIOS = tuple(_FACTORIES)
