@@ -362,15 +362,23 @@ def main(argv=None):
     ap.add_argument('--presets', default=','.join(SCENARIOS_OF))
     ap.add_argument('--ablate', default='', help='a preset file: one arm per parameter removed')
     ap.add_argument('--cache', action='store_true', help='keep the simulations on disk')
+    ap.add_argument('--scenarios', default='',
+                    help='scenario keys replacing the preset\'s (one preset only; a page of '
+                         'its own, e.g. a case a preset is not written for)')
     ap.add_argument('--out', default=str(ROOT / 'bench' / 'results' / 'presets.md'))
     args = ap.parse_args(argv)
     presets = [p for p in args.presets.split(',') if p]
+    scenarios_of = dict(SCENARIOS_OF)
+    if args.scenarios:
+        if len(presets) != 1:
+            raise SystemExit('--scenarios takes one preset (--presets FILE)')
+        scenarios_of[presets[0]] = (tuple(args.scenarios.split(',')), 'given with --scenarios')
     unknown = sorted({p.name for p in CONFIG.glob('alignment_*.yaml')} - set(SCENARIOS_OF))
     if unknown:
         raise SystemExit(f'no scenario for {", ".join(unknown)}: add it to SCENARIOS_OF')
     todo = {}       # scenario key -> {arm label: params}
     for pre in presets:
-        for key in SCENARIOS_OF[pre][0]:
+        for key in scenarios_of[pre][0]:
             cell = todo.setdefault(key, {'defaults': {}})
             for arm, params in arms(pre, pre == args.ablate):
                 cell[f'{pre}: {arm}'] = params
@@ -407,7 +415,7 @@ def main(argv=None):
         '**Verdict rule** (`compare`): ' + ' '.join(compare.__doc__.split('\n\n')[1].split()))
     verdicts = {}
     for pre in presets:
-        keys, why = SCENARIOS_OF[pre]
+        keys, why = scenarios_of[pre]
         lines += [f'## {pre}', '', f'Scenarios: {", ".join(f"`{k}`" for k in keys)} ({why}).',
                   ''] + HEADER
         losses, gains, common = [], [], []
@@ -442,7 +450,7 @@ def main(argv=None):
     lines += [f'| {p} | {v} | {params_digest(CONFIG / p, "alignment_node")} |'
               for p, v in verdicts.items()]
     for f in sorted(CONFIG.glob('simulator_*.yaml')):
-        users = [p for p in presets if f.name in SCENARIOS_OF[p][0]]
+        users = [p for p in presets if f.name in scenarios_of[p][0]]
         lines.append(f'| {f.name} | simulator data (of {", ".join(users) or "no preset"}) '
                      f'| {params_digest(f, "simulator_node")} |')
     lines += ['', f'Wall time {wall / 60:.1f} min on {args.jobs} process(es).']

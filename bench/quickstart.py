@@ -47,8 +47,8 @@ PLATFORMS = {
     'car': ('alignment_car_mems.yaml', 'car_consumer', [
         ('good', 'GNSS position and velocity', {}),
         ('bad', 'no GNSS (the receiver not publishing), 450 s', {'gnss': None, 'until': 450.0})]),
-    'ship or USV': ('alignment_ship_asckf.yaml', 'ship_underway_mast~compass', [
-        ('good', 'mast antenna lever arm told, GNSS compass', {}),
+    'ship or USV': ('alignment_ship_asckf.yaml', 'ship_underway_mast', [
+        ('good', 'mast antenna lever arm told', {}),
         ('bad', 'the 18-m mast lever arm not told',
          {'params': {'gnss_lever_arm_m': (0.0, 0.0, 0.0)}})]),
     'still base': ('alignment_stationary.yaml', 'static_navigation~nognss', [
