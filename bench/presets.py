@@ -209,9 +209,10 @@ def run_job(job):
     sc = scenario_of(key)
     data = simulate_cached(sc, seed, CACHE) if cached else simulate(sc, seed)
     heading = compass_epochs(data, seed) if key.endswith(COMPASS) else None
+    installed = installation(sc)
     res = {}
     for arm, params in todo:
-        run = run_pipeline({**params, **installation(sc)}, data, heading=heading)
+        run = run_pipeline({**params, **installed}, data, heading=heading)
         res[arm] = sim_run(run, sc.imu_rate_hz)
         res[arm]['ran'] = run.pipeline.status()['fine_filter']
     return res

@@ -301,8 +301,7 @@ class AlignmentPipeline:
                 if j > i:
                     c.t_last = t[j - 1]
                 w.judge(c.t_first, self.cfg, self.noise, self.gnss, still)
-                w.hold_for_drive_test(c.t_first, self.cfg, self.gnss.seen, self.noise,
-                                      self._latitude_or_equator())
+                w.hold_for_drive_test(c.t_first, self.cfg, self.noise, self.gnss)
                 out = unknown(t[i:j], COARSE)
                 if w.full:
                     self._finish_coarse()
@@ -376,11 +375,6 @@ class AlignmentPipeline:
         self._diverged(reason)
 
     # -- stages ---------------------------------------------------------------------------
-    def _latitude_or_equator(self):
-        """Latitude (rad) as known now (GNSS or the site), 0 where it is not."""
-        return self.gnss.position(self.cfg, False)[0][0] if self.gnss.latitude_known(self.cfg) \
-            else 0.0
-
     def _choose_position(self):
         self.position, self.position_source = self.gnss.position(self.cfg, self.aided)
 

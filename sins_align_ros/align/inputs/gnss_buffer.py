@@ -40,6 +40,12 @@ QUEUE = 100
 TRACK_MIN_FIXES, TRACK_COVER = 8, 0.8
 
 
+def _local_track(fixes):
+    """Stamps (N,) and ENU offsets (N, 3) m from the first of ``fixes`` (history records)."""
+    f = np.array([r[:4] for r in fixes], dtype=float)
+    return f[:, 0], earth.local_offset_m(*f[0, 1:4], f[:, 1], f[:, 2], f[:, 3])
+
+
 class GnssBuffer:
     """See the module docstring."""
 
@@ -259,11 +265,7 @@ class GnssBuffer:
         fixes = [f for f in self.fixes if lo <= f[0] <= hi]
         if len(fixes) < 7 or fixes[0][0] > tt[0] + 2.0 or fixes[-1][0] < tt[-1] - 2.0:
             return None, None, 'none'
-        tf = np.array([f[0] for f in fixes])
-        lat0, lon0, h0 = fixes[0][1:4]
-        enu = earth.local_offset_m(lat0, lon0, h0, np.array([f[1] for f in fixes]),
-                                   np.array([f[2] for f in fixes]),
-                                   np.array([f[3] for f in fixes]))
+        tf, enu = _local_track(fixes)
         w = 3
         vt, vv = [], []
         for i in range(w, len(tf) - w):
@@ -317,10 +319,7 @@ class GnssBuffer:
                 fixes.append(f)
         if len(fixes) < TRACK_MIN_FIXES or fixes[0][0] - fixes[-1][0] < TRACK_COVER * span:
             return None, None, None
-        tf = np.array([f[0] for f in fixes])
-        lat0, lon0, h0 = fixes[-1][1:4]
-        enu = earth.local_offset_m(lat0, lon0, h0, np.array([f[1] for f in fixes]),
-                                   np.array([f[2] for f in fixes]), np.full(len(fixes), h0))
+        tf, enu = _local_track(fixes)
         tc = tf - tf.mean()
         d = enu[:, :2] - enu[:, :2].mean(axis=0)
         v = (tc @ d) / (tc @ tc)

@@ -123,7 +123,7 @@ class CoarseWindow:
         if self.t_check is None and still and cfg['coarse_min_duration'] < self.duration:
             self.t_check = t_first + cfg['coarse_min_duration']
 
-    def hold_for_drive_test(self, t_first, cfg, gnss_seen, noise, lat):
+    def hold_for_drive_test(self, t_first, cfg, noise, gnss):
         """Keep a full window open to :data:`DRIVE_TEST_S` where ``auto`` has no GNSS at all.
 
         Without GNSS only the IMU can tell a drive from rest
@@ -136,13 +136,15 @@ class CoarseWindow:
         or the noise the samples show above :data:`HOLD_GYRO_NOISE_DPSH`, the tactical
         class's edge: the vehicle IMUs): a tactical or navigation-grade gyro still ends
         its window when it is good enough, the still base of issue 46. ``t_first``: where
-        the window began; ``gnss_seen``: a fix or velocity has come; ``noise`` the
-        configured model; ``lat`` rad. ``fine_filter`` other than ``auto`` (a still-base
-        filter named) declares a base at rest and keeps its window.
+        the window began; ``noise`` the configured model; ``gnss`` the
+        :class:`~..inputs.gnss_buffer.GnssBuffer` (no message yet; the latitude if known,
+        else the equator's). ``fine_filter`` other than ``auto`` (a still-base filter
+        named) declares a base at rest and keeps its window.
         """
-        if not (self.full and not gnss_seen and cfg['fine_filter'] == 'auto'
+        if not (self.full and not gnss.seen and cfg['fine_filter'] == 'auto'
                 and self.t_end is None and self.T < DRIVE_TEST_S - 1e-9):
             return
+        lat = gnss.position(cfg, False)[0][0] if gnss.latitude_known(cfg) else 0.0
         seen = seen_noise(self.arrays(t_first), noise)
         if sees_earth_rate(lat, noise) and seen.gyro_arw <= HOLD_GYRO_NOISE_DPSH * DPSH:
             return
