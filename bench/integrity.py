@@ -55,7 +55,7 @@ from sins_align_ros.eval.evidence import limits_of  # noqa: E402
 from sins_align_ros.eval.integrity import (cell_stats, run_integrity,  # noqa: E402
                                            spec_limit, verdict)
 from sins_align_ros.eval.markdown import machine_summary, write_markdown  # noqa: E402
-from sins_align_ros.eval.pool import monte_carlo  # noqa: E402
+from sins_align_ros.eval.pool import monte_carlo, scheduler_address  # noqa: E402
 from sins_align_ros.eval.report import am  # noqa: E402
 from sins_align_ros.eval.run import run_pipeline  # noqa: E402
 from sins_align_ros.eval.scenarios import named, simulate  # noqa: E402
@@ -329,7 +329,11 @@ def main(argv=None):
     ap.add_argument('--runs', type=int, default=10, help='seeded runs per cell')
     ap.add_argument('--runs-for', nargs='*', default=[], metavar='SCEN=N',
                     help='fewer (or more) runs for the cells of a scenario')
-    ap.add_argument('--jobs', type=int, default=1, help='processes (default 1)')
+    ap.add_argument('--jobs', type=int, default=1,
+                    help='processes: a local Dask cluster of N workers (default 1: this one)')
+    ap.add_argument('--scheduler', metavar='ADDRESS',
+                    help='run on the Dask cluster of this scheduler (default '
+                         '$DASK_SCHEDULER_ADDRESS; docs/testing.md#a-cluster)')
     ap.add_argument('--filters', default=','.join(FILTER_SCENARIOS))
     ap.add_argument('--grades', default=','.join(GRADES))
     ap.add_argument('--told', default=','.join(TOLD))
@@ -378,7 +382,7 @@ def main(argv=None):
             per_job, wall, cmd, commit = pickle.load(fh)
     else:
         t0 = time.monotonic()
-        per_job = monte_carlo(run_job, jobs, args.jobs)
+        per_job = monte_carlo(run_job, jobs, args.jobs, scheduler=args.scheduler)
         wall = time.monotonic() - t0
         if args.raw:
             with open(args.raw, 'wb') as fh:
@@ -427,11 +431,17 @@ def main(argv=None):
     reduced = ', '.join(f'`{k}` {v} runs' for k, v in args.runs_for.items())
     lines += ['', f'{len(cells)} cells, {args.runs} runs per cell'
               + (f' (fewer where costly: {reduced})' if reduced else '')
-              + f'; wall time {wall / 60:.1f} min on {args.jobs} process(es), pipeline time '
+              + f'; wall time {wall / 60:.1f} min on {where(args)}, pipeline time '
               f'{cpu / 60:.1f} min.']
     write_markdown(args.out, lines)
     print(f'wrote {args.out}: {len(failing)} failing cells of {len(cells)}', file=sys.stderr)
     return 0
+
+
+def where(args):
+    """Return where the runs ran, for the page: the processes, or the cluster."""
+    address = scheduler_address(args.scheduler)
+    return f'the Dask cluster at {address}' if address else f'{args.jobs} process(es)'
 
 
 def commit_of(root):

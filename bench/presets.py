@@ -53,7 +53,7 @@ from sins_align_ros.eval.cache import simulate_cached  # noqa: E402
 from sins_align_ros.eval.integrity import (cell_stats, inside_at_end,  # noqa: E402
                                            published_sigma, run_integrity, sample_rows)
 from sins_align_ros.eval.markdown import page_head, write_markdown  # noqa: E402
-from sins_align_ros.eval.pool import monte_carlo  # noqa: E402
+from sins_align_ros.eval.pool import monte_carlo, scheduler_address  # noqa: E402
 from sins_align_ros.eval.recordings import read_fog  # noqa: E402
 from sins_align_ros.eval.run import run_pipeline  # noqa: E402
 from sins_align_ros.eval.scenarios import simulate  # noqa: E402
@@ -359,7 +359,11 @@ def main(argv=None):
     """Run every preset's cells and write the results page."""
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
     ap.add_argument('--runs', type=int, default=10)
-    ap.add_argument('--jobs', type=int, default=1)
+    ap.add_argument('--jobs', type=int, default=1,
+                    help='processes: a local Dask cluster of N workers (default 1: this one)')
+    ap.add_argument('--scheduler', metavar='ADDRESS',
+                    help='run on the Dask cluster of this scheduler (default '
+                         '$DASK_SCHEDULER_ADDRESS; docs/testing.md#a-cluster)')
     ap.add_argument('--presets', default=','.join(SCENARIOS_OF))
     ap.add_argument('--ablate', default='', help='a preset file: one arm per parameter removed')
     ap.add_argument('--cache', action='store_true', help='keep the simulations on disk')
@@ -391,7 +395,7 @@ def main(argv=None):
             results[('fog_mems', arm)] = [fog_run(rec, params)]
     jobs = [(key, FIRST_SEED + k, list(cells.items()), args.cache)
             for key, cells in todo.items() for k in range(args.runs)]
-    for job, res in zip(jobs, monte_carlo(run_job, jobs, args.jobs)):
+    for job, res in zip(jobs, monte_carlo(run_job, jobs, args.jobs, scheduler=args.scheduler)):
         for arm, r in res.items():
             results.setdefault((job[0], arm), []).append(r)
     wall = time.monotonic() - t0
@@ -454,7 +458,9 @@ def main(argv=None):
         users = [p for p in presets if f.name in scenarios_of[p][0]]
         lines.append(f'| {f.name} | simulator data (of {", ".join(users) or "no preset"}) '
                      f'| {params_digest(f, "simulator_node")} |')
-    lines += ['', f'Wall time {wall / 60:.1f} min on {args.jobs} process(es).']
+    address = scheduler_address(args.scheduler)
+    lines += ['', f'Wall time {wall / 60:.1f} min on '
+              + (f'the Dask cluster at {address}.' if address else f'{args.jobs} process(es).')]
     write_markdown(args.out, lines)
     print('\n'.join(lines[-len(verdicts) - 8:]))
     return 0

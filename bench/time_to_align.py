@@ -14,7 +14,6 @@ import platform
 import subprocess
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +26,7 @@ sys.path.insert(0, str(ROOT))
 from sins_align_ros.eval.errors import attitude_errors  # noqa: E402
 from sins_align_ros.eval.run import run_scenario  # noqa: E402
 from sins_align_ros.eval.scenarios import named  # noqa: E402
+from sins_align_ros.eval.pool import monte_carlo  # noqa: E402
 from sins_align_ros.eval.limits import scenario_limits  # noqa: E402
 from sins_align_ros.sim.presets import scenario, starting_still, translates  # noqa: E402
 
@@ -183,8 +183,7 @@ def main():
         return 0
     jobs = [(s, f, FIRST_SEED + k) for s, f, _ in CASES for k in range(args.runs)]
     w0 = time.perf_counter()
-    with ProcessPoolExecutor(args.jobs) as pool:
-        res = list(pool.map(one, jobs))
+    res = monte_carlo(one, jobs, args.jobs)
     rows = []
     for i, (scen, filt, what) in enumerate(CASES):
         rs = res[i * args.runs:(i + 1) * args.runs]

@@ -67,7 +67,7 @@ def test_still_base_monte_carlo_reaches_the_analytic_limit_on_any_number_of_proc
     # in job order, and a worker process computes the same numbers as this one
     assert np.array_equal(par[1].phi, still_run.final.phi)
     assert par[1].nees == still_run.final.nees
-    assert '3/3 runs' in progress and progress.endswith('\n')
+    assert '3/3' in progress and progress.endswith('\n')
     assert monte_carlo(abs, [-1, 2, -3], procs=1, progress=False) == [1, 2, 3]
     expected = limits_of(named(*STILL), 'reduced7')[0]        # ENU, rad
     st = error_summary([f.euler for f in par], [f.sigma for f in par])

@@ -58,12 +58,17 @@ def pipeline_status(p):
 
 
 class ConditionReport:
-    """Counts already reported, so that each degraded condition is said once."""
+    """Counts already reported, so that each degraded condition is said once.
+
+    ``said``: every condition's text reported so far, once each, in order (a run's
+    summary; what one call returns depends on how often the caller asks).
+    """
 
     def __init__(self):
         self._reported = {'rejected': 0, 'forced': 0, 'ahead_of_imu': 0, 'queue_full': 0}
         self._mounting = ''
         self._moving = ''
+        self.said = []
 
     def conditions(self, p):
         """Degraded conditions of pipeline ``p`` as ``[(level, text)]`` (1 warn, 2 error).
@@ -116,6 +121,7 @@ class ConditionReport:
         if n > 0:
             out.append((1, f'{n} GNSS message(s) stamped more than {MAX_LEAD_S:.0f} s '
                            'ahead of the IMU clock: skipped (clocks disagree)'))
+        self.said.extend(text for _, text in out if text not in self.said)
         return out
 
     def _since(self, key, count):
