@@ -17,7 +17,8 @@ import pytest
 
 from conftest import ROOT, running
 from sins_align_ros.align import params as prm
-from sins_align_ros.cli.replay import _truth_euler, load_parameters, replay_bag
+from sins_align_ros.cli.replay import load_parameters
+from sins_align_ros.cli.replay_one import _truth_euler, replay_bag
 from sins_align_ros.cli.replay import main as replay
 from sins_align_ros.io.bag import write_scenario_bag
 from sins_align_ros.io.report import truth_euler_at
