@@ -440,7 +440,7 @@ def main(argv=None):
 
 def where(args):
     """Return where the runs ran, for the page: the processes, or the cluster."""
-    address = scheduler_address(args.scheduler)
+    address = scheduler_address(args.scheduler, args.jobs)
     return f'the Dask cluster at {address}' if address else f'{args.jobs} process(es)'
 
 

@@ -458,7 +458,7 @@ def main(argv=None):
         users = [p for p in presets if f.name in scenarios_of[p][0]]
         lines.append(f'| {f.name} | simulator data (of {", ".join(users) or "no preset"}) '
                      f'| {params_digest(f, "simulator_node")} |')
-    address = scheduler_address(args.scheduler)
+    address = scheduler_address(args.scheduler, args.jobs)
     lines += ['', f'Wall time {wall / 60:.1f} min on '
               + (f'the Dask cluster at {address}.' if address else f'{args.jobs} process(es).')]
     write_markdown(args.out, lines)

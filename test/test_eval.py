@@ -61,6 +61,7 @@ def test_run_has_the_truth_of_every_row_and_its_final_error(still_run):
     assert np.all(np.isnan(series[:2])) and np.array_equal(series[2], phi)
 
 
+@pytest.mark.exclusive       # its fixture starts a Dask cluster of two worker processes
 def test_still_base_monte_carlo_reaches_the_analytic_limit_on_any_number_of_processes(
         still_run, still_pool):
     par, progress = still_pool

@@ -30,7 +30,7 @@ def cluster():
     import distributed
     kernels.warm_up()
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as c:
+                                  dashboard_address=':0') as c:
         yield c
 
 
@@ -54,7 +54,9 @@ def _summary(path):
 
 
 @pytest.mark.exclusive
-def test_integrity_harness_on_two_workers_equals_the_runs_in_this_process(cluster, tmp_path):
+def test_integrity_harness_on_two_workers_equals_the_runs_in_this_process(cluster, tmp_path,
+                                                                          monkeypatch):
+    monkeypatch.delenv(pool.SCHEDULER_ENV, raising=False)
     integrity = load_bench('integrity')
     common = ['--filters', 'auto', '--scenarios', 'static', '--grades', 'navigation,mems',
               '--told', 'right', '--runs', '2', '--duration-scale', '0.3', '--commit', 'test']
@@ -73,22 +75,34 @@ def test_integrity_harness_on_two_workers_equals_the_runs_in_this_process(cluste
 
 @pytest.mark.exclusive
 def test_fleet_replay_on_two_workers_equals_one_process_and_each_single_replay(
-        cluster, fleet, tmp_path):
-    one, two = tmp_path / 'one', tmp_path / 'two'
-    # the broken recording is a fault in its row (exit 1); the others still run
+        cluster, fleet, tmp_path, capsys, monkeypatch):
+    monkeypatch.delenv(pool.SCHEDULER_ENV, raising=False)
+    one, two, local = tmp_path / 'one', tmp_path / 'two', tmp_path / 'local'
+    # the broken recording is a fault in its row (exit 1, said even with --quiet); the
+    # others still run
     assert replay([str(fleet), '--out', str(one), '--quiet']) == 1
+    err = capsys.readouterr().err
+    assert 'broken: ' in err and 'not a readable rosbag2' in err and '3 of 4 clean' in err
     assert replay([str(fleet / 'car'), str(fleet / 'still_1'), str(fleet / 'still_2'),
                    str(fleet / 'broken.mcap'), '--out', str(two), '--formats', 'csv,mcap',
                    '--scheduler', cluster.scheduler_address, '--quiet']) == 1
+    # --jobs 2: a LocalCluster of its own (eval/pool.py's settings); options may follow
+    # the inputs or sit between them
+    assert replay([str(fleet / 'car'), '--out', str(local), str(fleet / 'still_1'),
+                   '--jobs', '2', '--quiet']) == 0
     rows = _summary(one / 'summary.csv')
     assert [r['result'] for r in rows] == ['broken', 'car', 'still_1', 'still_2']
     # the same files whatever ran them (the summary in the order of the inputs given)
     for name in ('car', 'still_1', 'still_2'):
         assert (one / f'{name}.csv').read_bytes() == (two / f'{name}.csv').read_bytes()
         assert (two / name / f'{name}.mcap').is_file()
+    for name in ('car', 'still_1'):
+        assert (one / f'{name}.csv').read_bytes() == (local / f'{name}.csv').read_bytes()
     by_name = {r['result']: r for r in _summary(two / 'summary.csv')}
     for r in rows:
         assert by_name[r['result']] == {**r, 'input': by_name[r['result']]['input']}
+    assert [r['input'] for r in rows] == [str(fleet / n) for n in (
+        'broken.mcap', 'car', 'still_1', 'still_2')]                     # absolute paths
     assert rows[0]['status'] == '1' and 'not a readable rosbag2' in rows[0]['error']
     assert not (one / 'broken.csv').exists()
     # each row is its own single replay's end: final row, first aligned row, warnings
@@ -119,6 +133,12 @@ def test_fleet_inputs_names_and_usage_errors(fleet, tmp_path, capsys):
     psins = shared_data('psins_lasergyro.imu')
     with pytest.raises(ValueError, match='one name: psins_lasergyro'):
         replay_many.result_names([psins, psins.with_suffix('.mcap')])
+    with pytest.raises(ValueError, match="named 'summary'"):
+        replay_many.result_names([psins, tmp_path / 'summary.mcap'])
+    # result bags into the inputs' own folder would replace the bag folders
+    assert replay([str(fleet), '--out', str(fleet), '--formats', 'csv,mcap']) == 2
+    assert 'would replace the input' in capsys.readouterr().err
+    assert (fleet / 'car' / 'metadata.yaml').is_file()
     for args, needle in (([str(fleet), '--out', str(tmp_path / 'x.csv')], 'names a folder'),
                          ([str(fleet), '--out', str(tmp_path / 'o'), '--formats', 'csv,pdf'],
                           '--formats takes'),
@@ -144,15 +164,22 @@ def test_without_dask_a_parallel_run_is_one_line_naming_the_package(
     with pytest.raises(pool.MissingDask):
         pool.monte_carlo(abs, [1, 2], procs=2, progress=False)
     assert pool.monte_carlo(abs, [-1, 2], procs=1, progress=False) == [1, 2]   # no Dask
+    # one process is this one whatever the environment names; more go to its cluster
+    monkeypatch.setenv(pool.SCHEDULER_ENV, 'tcp://192.0.2.1:8786')
+    assert pool.monte_carlo(abs, [-1, 2], procs=1, progress=False) == [1, 2]
+    assert pool.scheduler_address(None, 2) == 'tcp://192.0.2.1:8786'
+    assert pool.scheduler_address('tcp://h:1', 1) == 'tcp://h:1'
 
 
-def test_the_node_and_a_single_replay_never_import_dask():
+def test_the_node_and_a_single_replay_never_import_dask(fleet):
     code = ('import sys; import sins_align_ros.cli.replay, sins_align_ros.ros.alignment_node; '
             'from sins_align_ros.cli.replay import main; '
-            f'main([{str(shared_data("psins_lasergyro.imu"))!r}, "--duration", "5", "--out", '
-            '"/dev/null", "--quiet"]); '
-            'print(sorted(m for m in sys.modules if m.split(".")[0] in ("dask", "distributed")))')
+            f'a = main([{str(shared_data("psins_lasergyro.imu"))!r}, "--duration", "5", '
+            '"--out", "/dev/null", "--quiet"]); '
+            f'b = main([{str(fleet / "still_1")!r}, "--out", "/dev/null", "--quiet"]); '
+            'print(a, b, sorted(m for m in sys.modules '
+            'if m.split(".")[0] in ("dask", "distributed")))')
     out = subprocess.run([sys.executable, '-c', code], cwd=ROOT, capture_output=True,
                          text=True, timeout=120)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.strip().splitlines()[-1] == '[]'
+    assert out.stdout.strip().splitlines()[-1] == '0 0 []'

@@ -145,25 +145,31 @@ def _summary(out, pipe):
 
 def main(argv=None):
     """Entry point; returns the exit code (0 ok, 1 input fault, 2 usage/parameter error)."""
-    args = _parser().parse_args(argv)
+    args = _parser().parse_intermixed_args(argv)
     log = (lambda m: None) if args.quiet else (lambda m: print(f'sins_align_replay: {m}',
                                                                file=sys.stderr))
     node_values = {}
+    fleet = len(args.input) > 1 or (Path(args.input[0]).is_dir()
+                                    and not is_rosbag2_folder(args.input[0]))
     try:
         values = load_parameters(args.params, args.set, log, node_values)
-        if len(args.input) > 1 or Path(args.input[0]).is_dir() and not is_rosbag2_folder(
-                args.input[0]):
-            return replay_many.main(args, values, node_values, log)
-        args.input = args.input[0]
-        psins = Path(args.input).suffix.lower() == '.imu'
-        csvs, bags = _outputs(args, psins)
+        if not fleet:
+            args.input = args.input[0]
+            psins = Path(args.input).suffix.lower() == '.imu'
+            csvs, bags = _outputs(args, psins)
     except (ValueError, OSError) as exc:
         print(f'sins_align_replay: error: {exc}', file=sys.stderr)
         return 2
-    status, out, pipe, error = replay_one(args, values, node_values, csvs, bags, log)
-    if error is not None:
-        print(f'sins_align_replay: error: {error}', file=sys.stderr)
-    if pipe is None:
+    if fleet:
+        return replay_many.main(args, values, node_values, log)
+    unused = [o for o, given in (('--jobs', args.jobs != 1), ('--scheduler', args.scheduler),
+                                 ('--formats', args.formats != 'csv')) if given]
+    if unused:
+        log(f'one recording: {", ".join(unused)} not used (they are for several inputs)')
+    status, out, pipe, written = replay_one(
+        args, values, node_values, csvs, bags, log,
+        lambda text: print(f'sins_align_replay: error: {text}', file=sys.stderr))
+    if pipe is None or not written:
         return status
     for w in warnings(pipe):
         log(f'warning: {w}')

@@ -8,7 +8,9 @@ them, one level deep (a folder holding ``metadata.yaml`` is one rosbag2, not a f
 them). Each runs exactly as it would alone (:func:`.replay_one.replay_one`, same parameters)
 and gets ``DIR/<name>.csv`` (and ``.mcap`` result bag, ``.png`` report, per ``--formats``),
 ``<name>`` being the input's name without its suffix. ``DIR/summary.csv`` has one row per
-input (:data:`SUMMARY_COLUMNS`), in the order given.
+input (:data:`SUMMARY_COLUMNS`), in the order given (a folder's recordings sorted by
+name). A result that would replace an input (``--out`` naming the inputs' folder with
+result bags) is refused.
 
 The recordings run one after the other in this process (``--jobs 1``, no Dask needed), on
 a local Dask cluster of ``--jobs`` processes, or on a running cluster (``--scheduler`` or
@@ -18,7 +20,8 @@ and write ``DIR`` themselves: both must be paths that every worker sees (a share
 filesystem), as ``docs/replay.md#fleets`` says.
 
 Exit status: 0 when every input ran clean, 1 when one had an input or output fault (its
-row says which; the others still ran), 2 for a usage error (nothing ran).
+row says which; the others still ran) or the cluster failed, 2 for a usage error (nothing
+ran). Errors go to stderr even with ``--quiet``.
 """
 import csv
 import io
@@ -34,6 +37,8 @@ from . import replay_one as single
 #: what a folder of recordings may hold (and ``metadata.yaml`` folders: rosbag2)
 SUFFIXES = ('.mcap', '.db3', '.imu')
 FORMATS = ('csv', 'mcap', 'png')
+#: the summary's name in the results folder (no input may take it)
+SUMMARY_NAME = 'summary'
 #: the columns of summary.csv: the end of each run (angles and 1-sigma in degrees, heading
 #: from north clockwise) and the time from its first IMU sample to its first ``aligned``
 #: row (empty if never); warnings joined by " | "
@@ -71,7 +76,29 @@ def result_names(paths):
     if twice:
         raise ValueError(f'two inputs would give results of one name: {", ".join(twice)} '
                          '(rename one, or replay them apart)')
+    if SUMMARY_NAME in names:
+        raise ValueError(f'an input named {SUMMARY_NAME!r} would write over {SUMMARY_NAME}.csv '
+                         '(rename it)')
     return names
+
+
+def result_paths(out_dir, name):
+    """Return the result paths of input ``name`` in ``out_dir`` per format (csv, mcap, png).
+
+    A result bag is the folder ``<name>/`` (:mod:`~sins_align_ros.io.result_bag`).
+    """
+    return {'csv': out_dir / f'{name}.csv', 'mcap': out_dir / name,
+            'png': out_dir / f'{name}.png'}
+
+
+def _no_overwrite(paths, names, out_dir, formats):
+    """Raise ValueError when a result would be written over an input (``--out`` = inputs)."""
+    inputs = {p.resolve() for p in paths}
+    for name in names:
+        for fmt, target in result_paths(out_dir, name).items():
+            if fmt in formats and target.resolve() in inputs:
+                raise ValueError(f'the result {target} would replace the input of that name: '
+                                 '--out must name another folder')
 
 
 def _formats(text):
@@ -110,21 +137,23 @@ def replay_job(job):
     the others.
     """
     args, values, node_values, path, name, out_dir, formats = job
-    lines = []
+    lines, errors = [], []
     one = type(args)(**vars(args))
     one.input, one.report = str(path), None
-    csvs = [str(out_dir / f'{name}.csv')] if 'csv' in formats else []
-    bags = [str(out_dir / f'{name}.mcap')] if 'mcap' in formats else []
+    target = result_paths(out_dir, name)
+    csvs = [str(target['csv'])] if 'csv' in formats else []
+    bags = [str(target['mcap']) + '.mcap'] if 'mcap' in formats else []
     if 'png' in formats:
-        one.report = str(out_dir / f'{name}.png')
+        one.report = str(target['png'])
     if path.suffix.lower() == '.imu':
-        bags, one.copy_input = [], False       # a PSINS log: no result bag (it has no topics)
+        one.copy_input = False                 # a PSINS log: nothing to copy
     try:
-        status, out, pipe, error = single.replay_one(one, values, node_values, csvs, bags,
-                                                     lines.append)
+        status, out, pipe, _ = single.replay_one(one, values, node_values, csvs, bags,
+                                                 lines.append, errors.append)
     except Exception as exc:                 # a fault in one recording is that row's error
-        status, out, pipe, error = 1, None, None, f'{type(exc).__name__}: {exc}'
-    return summary_row(str(path), name, status, error, out, pipe), lines
+        status, out, pipe = 1, None, None
+        errors.append(f'{type(exc).__name__}: {exc}')
+    return summary_row(str(path), name, status, '; '.join(errors), out, pipe), lines
 
 
 def summary_row(path, name, status, error, out, pipe):
@@ -164,37 +193,56 @@ def write_summary(path, rows):
 
 def main(args, values, node_values, log):
     """Replay the fleet of ``args.input`` (parameters already loaded); returns the exit code."""
+    def error(text):
+        print(f'sins_align_replay: error: {text}', file=sys.stderr)
+
     try:
         out_dir, formats = _check(args)
-        paths = recordings(args.input)
+        # absolute: the workers of a cluster do not share this process's working directory
+        paths = [p.resolve() for p in recordings(args.input)]
         names = result_names(paths)
+        out_dir = out_dir.resolve()
+        _no_overwrite(paths, names, out_dir, formats)
         out_dir.mkdir(parents=True, exist_ok=True)
     except (ValueError, OSError) as exc:
-        print(f'sins_align_replay: error: {exc}', file=sys.stderr)
+        error(exc)
         return 2
     # here, not at the top: a single replay imports this module and must stay light (the
     # evaluation package loads numba; test_kernels.py holds a replay to neither)
     from ..eval.pool import MissingDask, monte_carlo, scheduler_address
-    address = scheduler_address(args.scheduler)
+    address = scheduler_address(args.scheduler, args.jobs)
     where = (f'the cluster at {address}' if address
-             else f'{args.jobs} processes' if args.jobs > 1 else 'one process')
-    log(f'{len(paths)} recordings on {where}; results in {out_dir}/')
+             else f'{min(args.jobs, len(paths))} processes' if args.jobs > 1
+             else 'this process')
+    log(f'{len(paths)} recordings in {where}; results in {out_dir}/')
     jobs = [(args, values, node_values, p, n, out_dir, formats) for p, n in zip(paths, names)]
     try:
         results = monte_carlo(replay_job, jobs, procs=args.jobs, progress=not args.quiet,
                               scheduler=args.scheduler)
     except MissingDask as exc:
-        print(f'sins_align_replay: error: {exc}', file=sys.stderr)
+        error(exc)
         return 2
+    except Exception as exc:         # the cluster failed (a lost connection, a killed worker)
+        error(f'the runs did not complete: {type(exc).__name__}: {exc}')
+        return 1
     rows = []
     for (row, lines), name in zip(results, names):
         for line in lines:
             log(f'{name}: {line}')
         if row['error']:
-            log(f'{name}: error: {row["error"]}')
+            error(f'{name}: {row["error"]}')
         rows.append(row)
-    write_summary(out_dir / 'summary.csv', rows)
+    summary = out_dir / f'{SUMMARY_NAME}.csv'
+    try:
+        write_summary(summary, rows)
+    except OSError as exc:
+        error(f'cannot write {summary}: {exc}')
+        return 1
     bad = [r['result'] for r in rows if r['status']]
-    log(f'summary: {out_dir / "summary.csv"} ({len(rows) - len(bad)} of {len(rows)} clean'
-        + (f'; faults in {", ".join(bad)})' if bad else ')'))
+    text = (f'summary: {summary} ({len(rows) - len(bad)} of {len(rows)} clean'
+            + (f'; faults in {", ".join(bad)})' if bad else ')'))
+    if bad:
+        error(text)
+    else:
+        log(text)
     return 1 if bad else 0

@@ -181,14 +181,17 @@ def _truth_euler(out, truth):
     return truth_euler_at(out.t, [t for t, _ in truth], [q for _, q in truth])
 
 
-def replay_one(args, values, node_values, csvs, bags, log):
+def replay_one(args, values, node_values, csvs, bags, log, fail):
     """Replay ``args.input`` (one path) into ``csvs``, ``bags`` and ``args.report``.
 
-    Returns ``(status, out, pipe, error)``: exit status (0 ok, 1 input or output fault,
-    with what was computed before a fault in the input still written), the
-    :class:`Output` and pipeline (None when nothing ran), and the one-line error or None.
+    ``log(text)`` takes the progress lines, ``fail(text)`` each error's one line when it
+    happens (an input fault before the outputs are written, as before the fleet).
+    Returns ``(status, out, pipe, written)``: exit status (0 ok, 1 input or output
+    fault; what was computed before a fault in the input is still written), the
+    :class:`Output` and pipeline (None when nothing ran), and whether the outputs were
+    written.
     """
-    status, truth, bag, error = 0, None, None, None
+    status, truth, bag = 0, None, None
     psins = Path(args.input).suffix.lower() == '.imu'
     try:
         if bags:
@@ -201,17 +204,13 @@ def replay_one(args, values, node_values, csvs, bags, log):
         else:
             out, pipe, truth = replay_bag(args.input, values, args, log,
                                           with_truth=bool(args.report), bag=bag)
-    except (PsinsFormatError, OSError) as exc:
-        if bag is not None:
-            bag.abort()
-        return 1, None, None, str(exc)
-    except BagError as exc:
-        error = str(exc)
+    except (PsinsFormatError, OSError, BagError) as exc:
+        fail(str(exc))
         partial = getattr(exc, 'partial', None)
         if partial is None:
             if bag is not None:
                 bag.abort()
-            return 1, None, None, error
+            return 1, None, None, False
         out, pipe, truth = partial
         status = 1
     try:
@@ -228,8 +227,9 @@ def replay_one(args, values, node_values, csvs, bags, log):
     except (OSError, BagError) as exc:
         if bag is not None:
             bag.abort()
-        return 1, out, pipe, f'cannot write output: {exc}'
-    return status, out, pipe, error
+        fail(f'cannot write output: {exc}')
+        return 1, out, pipe, False
+    return status, out, pipe, True
 
 
 def is_rosbag2_folder(path):
@@ -238,11 +238,12 @@ def is_rosbag2_folder(path):
 
 
 def warnings(pipe):
-    """Return the pipeline's warnings and every condition it reported over the run, as text.
+    """Return the pipeline's warnings and its conditions over the run, as text.
 
-    The conditions a result bag's /diagnostics already said are among them (a result bag
-    asks for them every diagnostic period, and may so list a counted condition, e.g. GNSS
-    epochs rejected, once per period with its count then).
+    The last text of each kind of condition (:attr:`~..align.forecast.report.
+    ConditionReport.said`), those a result bag's /diagnostics already said among them; a
+    counted one (GNSS epochs rejected) counts since the last time it was asked for, which
+    with a result bag is the last diagnostic period.
     """
     pipe.conditions()
     return pipe.warnings + pipe.report.said

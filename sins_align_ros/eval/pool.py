@@ -5,8 +5,8 @@ One front door, :func:`monte_carlo`: ``[fn(job) for job in jobs]`` computed
 - in this process (one job at a time) when ``procs`` is 1 or less and no scheduler is named;
 - on a :class:`distributed.LocalCluster` of ``procs`` one-thread worker processes started for
   the call (the default on more than one core);
-- on a running cluster, given its scheduler's address (``scheduler='tcp://host:8786'``,
-  or Dask's own ``DASK_SCHEDULER_ADDRESS`` environment variable).
+- on a running cluster, given its scheduler's address (``scheduler='tcp://host:8786'``;
+  or, when more than one process is asked for, Dask's own ``DASK_SCHEDULER_ADDRESS``).
 
 Dask is needed only for the last two: the node and a single replay never import it, and a
 user who asks for ``--jobs`` or ``--scheduler`` without it installed gets
@@ -45,8 +45,8 @@ SCHEDULER_ENV = 'DASK_SCHEDULER_ADDRESS'
 #: glibc then gives the memory back and asks for it again all the time)
 WORKER_CONFIG = {'distributed.worker.multiprocessing-method': 'spawn',
                  'distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_': None,
-                 # the dashboard's statistical profiler (a stack sample every 10 ms): no
-                 # dashboard here, and it cost 1 % of a run
+                 # the dashboard's statistical profiler (a stack sample every 10 ms): the
+                 # dashboard needs bokeh, not installed, and it cost 1 % of a run
                  'distributed.worker.profile.enabled': False}
 
 
@@ -59,9 +59,17 @@ def default_procs():
     return os.cpu_count() or 1
 
 
-def scheduler_address(scheduler=None):
-    """Return the scheduler address: ``scheduler``, else ``$DASK_SCHEDULER_ADDRESS``, else None."""
-    return scheduler or os.environ.get(SCHEDULER_ENV) or None
+def scheduler_address(scheduler=None, procs=2):
+    """Return the cluster to run on, or None for a LocalCluster or this process.
+
+    ``scheduler`` when given; else ``$DASK_SCHEDULER_ADDRESS`` when more than one process
+    is asked for (``procs`` > 1): one process always means this one, whatever the
+    environment says, and a parallel run goes to the cluster the environment names
+    instead of a local one.
+    """
+    if scheduler:
+        return scheduler
+    return (os.environ.get(SCHEDULER_ENV) or None) if procs > 1 else None
 
 
 def _distributed():
@@ -77,12 +85,13 @@ def _distributed():
 def open_client(procs, scheduler=None):
     """Return a connected :class:`distributed.Client` and the cluster it started (or None).
 
-    ``scheduler``: an address; else a LocalCluster of ``procs`` one-thread worker processes,
-    no dashboard, started after the kernels are compiled here. Close both when done
-    (:func:`close_client`).
+    The cluster of :func:`scheduler_address`; else a LocalCluster of ``procs`` one-thread
+    worker processes (its HTTP server on a free port: two clusters at once do not contend
+    for Dask's 8787), started after the kernels are compiled here. Close
+    both when done (:func:`close_client`).
     """
     distributed = _distributed()
-    address = scheduler_address(scheduler)
+    address = scheduler_address(scheduler, procs)
     if address:
         return distributed.Client(address, set_as_default=False), None
     kernels.warm_up()
@@ -91,7 +100,7 @@ def open_client(procs, scheduler=None):
     try:
         with dask.config.set(WORKER_CONFIG):
             cluster = distributed.LocalCluster(n_workers=int(procs), threads_per_worker=1,
-                                               processes=True, dashboard_address=None,
+                                               processes=True, dashboard_address=':0',
                                                silence_logs=logging.ERROR)
     finally:        # the nanny sets its workers' variables in this process's environment
         os.environ.clear()
@@ -112,9 +121,9 @@ def monte_carlo(fn, jobs, procs=None, progress=True, stream=None, scheduler=None
     ``fn`` must be picklable by cloudpickle (a module-level function; one of a script's
     ``__main__`` goes by value) and its result depend on the job alone, so the results are
     the same for any ``procs``. ``procs`` None: the machine's cores; 1 or less: in this
-    process (unless a scheduler is named). ``scheduler``: a running cluster's address
-    (default ``$DASK_SCHEDULER_ADDRESS``; ``procs`` is then not used). ``progress``: a tqdm
-    bar on ``stream`` (stderr) as runs finish.
+    process (unless ``scheduler`` is given). ``scheduler``: a running cluster's address
+    (for ``procs`` > 1 the default is ``$DASK_SCHEDULER_ADDRESS``; :func:`scheduler_address`).
+    ``progress``: a tqdm bar on ``stream`` (stderr) as runs finish.
     """
     jobs = list(jobs)
     procs = default_procs() if procs is None else int(procs)
@@ -124,12 +133,13 @@ def monte_carlo(fn, jobs, procs=None, progress=True, stream=None, scheduler=None
     bar = tqdm(total=len(jobs), unit='run', file=sys.stderr if stream is None else stream,
                disable=not progress, mininterval=1.0, dynamic_ncols=True)
     with bar:
-        if procs <= 1 and not scheduler_address(scheduler):
+        address = scheduler_address(scheduler, procs)
+        if procs <= 1 and not address:
             for k, job in enumerate(jobs):
                 out[k] = fn(job)
                 bar.update()
             return out
-        client, cluster = open_client(procs, scheduler)
+        client, cluster = open_client(min(procs, len(jobs)), address)
         try:
             distributed = _distributed()
             futures = client.map(fn, jobs, pure=False)

@@ -5,6 +5,8 @@ time, 1-sigma Euler angles, the engine's internals, the GNSS and coarse figures)
 :class:`ConditionReport` turns the counts that grew since its last call into
 warnings, so each rejection is reported once.
 """
+import re
+
 import numpy as np
 
 from ...nav.frames import dcm_to_euler, euler_cov_from_phi_cov
@@ -14,6 +16,8 @@ from ..inputs.gnss_buffer import MAX_LEAD_S, QUEUE
 
 #: the GNSS-aided filters say they run unaided after this long without a GNSS epoch, s
 OUTAGE_WARN_S = 5.0
+#: a number in a condition's text (its kind is the text without them)
+_NUMBER = re.compile(r'[-+]?\d+(?:\.\d+)?')
 
 
 def pipeline_status(p):
@@ -60,7 +64,7 @@ def pipeline_status(p):
 class ConditionReport:
     """Counts already reported, so that each degraded condition is said once.
 
-    ``said``: every condition's text reported so far, once each, in order (a run's
+    :attr:`said`: the last text of each kind of condition reported so far (a run's
     summary; what one call returns depends on how often the caller asks).
     """
 
@@ -68,7 +72,16 @@ class ConditionReport:
         self._reported = {'rejected': 0, 'forced': 0, 'ahead_of_imu': 0, 'queue_full': 0}
         self._mounting = ''
         self._moving = ''
-        self.said = []
+        self._said = {}       # kind (the text, numbers blanked) -> its last text
+
+    @property
+    def said(self):
+        """Return the last text of each kind of condition reported, in order of first report.
+
+        Bounded by the kinds, not the run's length: a text that changes with every call
+        (an outage's length, a count) keeps one entry.
+        """
+        return list(self._said.values())
 
     def conditions(self, p):
         """Degraded conditions of pipeline ``p`` as ``[(level, text)]`` (1 warn, 2 error).
@@ -121,7 +134,8 @@ class ConditionReport:
         if n > 0:
             out.append((1, f'{n} GNSS message(s) stamped more than {MAX_LEAD_S:.0f} s '
                            'ahead of the IMU clock: skipped (clocks disagree)'))
-        self.said.extend(text for _, text in out if text not in self.said)
+        for _, text in out:
+            self._said[_NUMBER.sub('#', text)] = text
         return out
 
     def _since(self, key, count):
