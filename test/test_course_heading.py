@@ -11,7 +11,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from sins_align_ros.align.stages import course_heading
+from sins_align_ros.align.stages import course_heading, slow_monitor
 from sins_align_ros.align.stages.course_heading import CourseHeading, fitted_course
 from sins_align_ros.align.stages.slow_monitor import Leg
 from sins_align_ros.eval.integrity import published_sigma, silent_wrong
@@ -160,6 +160,39 @@ def test_a_position_only_robot_finds_its_heading_inside_its_sigma(robot_data):
     assert abs(err[-1, 2]) <= 3.0 * sig[-1, 2]
     silent, why = silent_wrong(err, sig)
     assert not silent, why
+
+
+def test_a_datasheet_position_sigma_beside_a_reporting_receiver_does_not_lose_the_heading(
+        robot_data):
+    """The aid weighs a fix as the engine does (``gnss_fix.epoch_var``), not by the larger
+    of the parameter and the report.
+
+    The robot's receiver reports 0.9 m. Told a datasheet 1.5 m, the aid used to take 1.5 m
+    for every fix: the legs' courses fell short of its sigma bound and the heading ended
+    unknown in 6 of 10 runs (robot_skid, node defaults: auto, i.e. kf). Now the reported
+    0.81 m^2 is each fix's variance under a filter that takes the reports, and the
+    parameter under one that estimates R (the VB filters, adaptive asckf).
+    """
+    sc, data = robot_data
+    run = run_pipeline(defaults(sc, 'kf', gnss_pos_sigma_m=1.5), data)
+    aid = run.pipeline.fine.course
+    assert aid.use_reported and aid.pos_var == pytest.approx(1.5 ** 2)
+    assert aid.n_used >= 3 and not aid.off
+    rows, err, sig = _rows(run, sc.imu_rate_hz)
+    assert sig[-1, 2] <= ROBOT_TARGET and abs(err[-1, 2]) <= 3.0 * sig[-1, 2]
+    from sins_align_ros.align.inputs.gnss_fix import GnssFix
+    from sins_align_ros.align.params import defaults as node_defaults
+
+    class Engine:
+        restages = False
+    fix = GnssFix(0.0, LAT, LON, H, pos_var=np.array([0.81, 0.81]))
+    for ff, expected in (('kf', 0.81), ('ukf', 0.81), ('ckf', 0.81), ('asckf', 2.25),
+                         ('vbakf', 2.25), ('vbckf', 2.25)):
+        cfg = {**node_defaults(), 'fine_filter': ff, 'gnss_pos_sigma_m': 1.5}
+        for aid in (course_heading.for_stage(Engine(), cfg),
+                    slow_monitor.for_stage(Engine(), cfg)):
+            aid._join(0.0, 0.0, *(() if isinstance(aid, CourseHeading) else (0.0,)), fix)
+            assert aid.leg.pos_var[-1] == pytest.approx(expected), (ff, type(aid))
 
 
 @pytest.mark.parametrize('fine_filter', ['kf', 'ukf'])

@@ -1,9 +1,10 @@
 """One GNSS epoch as the engines take it, and the noise they take it with.
 
-A record (:class:`GnssFix`) and two rules on the parameters (which filters take R from
-the receiver's reported covariance, :func:`uses_reported_covariance`, and the resulting
-1-sigma, :func:`gnss_sigma`), shared by the inputs (the GNSS buffer), the self-check and
-the engines; it imports no engine, so the inputs need none.
+A record (:class:`GnssFix`) and three rules on the parameters (which filters take R from
+the receiver's reported covariance, :func:`uses_reported_covariance`, the resulting
+1-sigma, :func:`gnss_sigma`, and one epoch's variance, :func:`epoch_var`), shared by the
+inputs (the GNSS buffer), the self-check, the course aids and the engines; it imports no
+engine, so the inputs need none.
 """
 import math
 from dataclasses import dataclass
@@ -57,3 +58,18 @@ def gnss_sigma(cfg, name, reported):
     if uses_reported_covariance(cfg) and len(reported):
         return math.sqrt(float(np.median([np.mean(v) for v in reported])))
     return cfg[name]
+
+
+def epoch_var(configured_var, reported, use_reported):
+    """Return the east/north variance the engine gives one epoch (m^2 or (m/s)^2).
+
+    The mean of the receiver's ``reported`` (2,) variances when the engine takes them
+    (``use_reported``: :func:`uses_reported_covariance`) and the message had them, else
+    ``configured_var`` (the parameter, as the self-check left it). The aids that judge a
+    leg's course (:mod:`~..stages.slow_monitor`, :mod:`~..stages.course_heading`) weigh
+    the fixes with it, as the engine does: a datasheet figure in ``gnss_pos_sigma_m``
+    beside a receiver that reports its covariance changes neither.
+    """
+    if use_reported and reported is not None:
+        return float(np.mean(reported))
+    return float(configured_var)

@@ -72,6 +72,7 @@ import numpy as np
 
 from ...nav import earth
 from ..engines.base import Engine
+from ..inputs.gnss_fix import epoch_var, uses_reported_covariance
 from ..inputs.heading import HeadingFix, wrap
 from .slow_monitor import (MAX_COURSE_SIGMA, MAX_LEG_S, MAX_YAW_RATE, MIN_EPOCHS, MIN_LEG_S,
                            MIN_SPEED, RATE_SPAN, STRAIGHT, Leg, YawRate)
@@ -90,12 +91,14 @@ class CourseHeading:
 
     ``sideslip_deg``: the sideslip 1-sigma of a straight leg; ``sigmas``: a leg disagrees
     beyond this many combined sigmas; ``pos_sigma``, ``vel_sigma``: the configured GNSS
-    sigmas (m, m/s), used where a fix reports less; ``markov_sigma`` (m), ``markov_tau``
+    sigmas (m, m/s); ``use_reported``: a fix's reported variances replace them, as in the
+    engine (:func:`~..inputs.gnss_fix.epoch_var`); ``markov_sigma`` (m), ``markov_tau``
     (s): the configured Gauss-Markov position error.
     """
 
     def __init__(self, sideslip_deg=5.0, sigmas=3.0, pos_sigma=1.0, vel_sigma=0.1,
-                 markov_sigma=0.0, markov_tau=60.0, track_speed=math.inf):
+                 markov_sigma=0.0, markov_tau=60.0, track_speed=math.inf, use_reported=False):
+        self.use_reported = bool(use_reported)
         self.var_s = math.radians(sideslip_deg) ** 2
         self.track_speed = float(track_speed)
         self._speeds = []             # the current leg's GNSS speeds (m/s), with velocity
@@ -149,15 +152,13 @@ class CourseHeading:
         leg.yaw.append(yaw)
         leg.var_h.append(0.0)
         leg.pos.append((fix.lat, fix.lon, fix.h))
-        leg.pos_var.append(self.pos_var if fix.pos_var is None
-                           else max(self.pos_var, float(np.mean(fix.pos_var))))
+        leg.pos_var.append(epoch_var(self.pos_var, fix.pos_var, self.use_reported))
         if fix.v_n is not None:
             v = np.asarray(fix.v_n, dtype=float)
             sp = math.hypot(v[0], v[1])
             self._speeds.append(sp)
             if sp >= MIN_SPEED:
-                vv = self.vel_var if fix.vel_var is None else max(self.vel_var,
-                                                                  float(np.mean(fix.vel_var)))
+                vv = epoch_var(self.vel_var, fix.vel_var, self.use_reported)
                 leg.course.append(math.atan2(v[1], v[0]))
                 leg.var_c.append(vv / (sp * sp))
 
@@ -284,4 +285,4 @@ def for_stage(engine: Engine, cfg):
     return CourseHeading(cfg['course_heading_sideslip_deg'], cfg['slow_monitor_sigmas'],
                          cfg['gnss_pos_sigma_m'], cfg['gnss_vel_sigma_mps'],
                          cfg['gnss_position_markov_sigma_m'], cfg['gnss_position_markov_tau_s'],
-                         cfg['track_min_speed_mps'])
+                         cfg['track_min_speed_mps'], uses_reported_covariance(cfg))

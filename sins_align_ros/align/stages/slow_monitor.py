@@ -78,6 +78,7 @@ import numpy as np
 
 from ...nav import earth
 from ..engines.base import AidedEngine, Engine
+from ..inputs.gnss_fix import epoch_var, uses_reported_covariance
 
 #: horizontal speed (m/s) below which an epoch joins no leg
 MIN_SPEED = 0.5
@@ -200,10 +201,13 @@ class SlowErrorMonitor:
 
     ``legs``: consecutive legs for a failure and for its end (0: off); ``sigmas``: the
     bound on ``|z|``; ``sideslip_deg``: the sideslip 1-sigma allowed; ``pos_sigma``,
-    ``vel_sigma``: the configured GNSS sigmas (m, m/s), used where a fix reports less.
+    ``vel_sigma``: the configured GNSS sigmas (m, m/s); ``use_reported``: a fix's reported
+    variances replace them, as in the engine (:func:`~..inputs.gnss_fix.epoch_var`).
     """
 
-    def __init__(self, legs=3, sigmas=3.0, sideslip_deg=1.0, pos_sigma=1.0, vel_sigma=0.1):
+    def __init__(self, legs=3, sigmas=3.0, sideslip_deg=1.0, pos_sigma=1.0, vel_sigma=0.1,
+                 use_reported=False):
+        self.use_reported = bool(use_reported)
         self.n_legs = int(legs)
         self.sigmas = float(sigmas)
         self.var_s = math.radians(sideslip_deg) ** 2
@@ -271,15 +275,12 @@ class SlowErrorMonitor:
         leg.yaw.append(yaw)
         leg.var_h.append(var_h)
         leg.pos.append((fix.lat, fix.lon, fix.h))
-        pv = (self.pos_var if fix.pos_var is None
-              else max(self.pos_var, float(np.mean(fix.pos_var))))
-        leg.pos_var.append(pv)
+        leg.pos_var.append(epoch_var(self.pos_var, fix.pos_var, self.use_reported))
         if fix.v_n is not None:
             v = np.asarray(fix.v_n, dtype=float)
             sp = math.hypot(v[0], v[1])
             if sp >= MIN_SPEED:
-                vv = self.vel_var if fix.vel_var is None else max(self.vel_var,
-                                                                  float(np.mean(fix.vel_var)))
+                vv = epoch_var(self.vel_var, fix.vel_var, self.use_reported)
                 leg.course.append(math.atan2(v[1], v[0]))
                 leg.var_c.append(vv / (sp * sp))
 
@@ -379,4 +380,4 @@ def for_stage(engine: Engine, cfg):
         return None
     return SlowErrorMonitor(cfg['slow_monitor_legs'], cfg['slow_monitor_sigmas'],
                             cfg['slow_monitor_sideslip_deg'], cfg['gnss_pos_sigma_m'],
-                            cfg['gnss_vel_sigma_mps'])
+                            cfg['gnss_vel_sigma_mps'], uses_reported_covariance(cfg))
