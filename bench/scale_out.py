@@ -66,6 +66,15 @@ def with_kernels(root):
             shutil.copy2(f, pkg / f.name)
 
 
+def commit_of(root):
+    """Return the short commit of checkout ``root`` ('+' when it has uncommitted changes)."""
+    def git(*a):
+        return subprocess.run(['git', '-C', str(root), *a], capture_output=True,
+                              text=True).stdout.strip()
+    head = git('rev-parse', '--short', 'HEAD') or '?'
+    return head + ('+' if git('status', '--porcelain', '--untracked-files=no') else '')
+
+
 def main(argv=None):
     """Time both checkouts on the subset and write the page."""
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[0])
@@ -100,10 +109,11 @@ def main(argv=None):
              'Wall time: the whole bench process, start to end. Pipeline time: the runs\' '
              'own wall times summed, as the page gives them (what the workers spent in '
              'the runs).', '',
-             '| checkout | runs on | wall time (s) | pipeline time (min) |',
-             '|---|---|---|---|']
-    for root, label, wall, c in zip(args.roots, args.labels, walls, cpu):
-        lines.append(f'| `{root}` | {label}, {args.jobs} workers | {wall:.1f} | {c:.1f} |')
+             '| checkout | commit | runs on | wall time (s) | pipeline time (min) |',
+             '|---|---|---|---|---|']
+    for root, label, wall, c in zip(roots, args.labels, walls, cpu):
+        lines.append(f'| `{root}` | {commit_of(root)} | {label}, {args.jobs} workers '
+                     f'| {wall:.1f} | {c:.1f} |')
     lines += ['', f'Ratio {args.labels[1]} / {args.labels[0]}: {walls[1] / walls[0]:.3f}.', '',
               'Results (every table row and failing cell): '
               + ('**identical**, line for line.' if same else '**different**:')]
