@@ -121,8 +121,9 @@ def main(argv=None):
     lines += ['', 'The Dask side starts its cluster for the run (spawned workers, each importing '
               'the package: about 2 s) and runs its event loops beside the runs. Dask\'s '
               'default worker settings cost more: its `MALLOC_TRIM_THRESHOLD_=65536` made '
-              'each run about 30 % slower and its profiler 1 %; the cluster of '
-              '`sins_align_ros/eval/pool.py` starts without both (`WORKER_CONFIG`).']
+              'each run about 30 % slower, its profiler 1 % and its 20-ms event-loop tick '
+              '5 %; the cluster of `sins_align_ros/eval/pool.py` starts without them '
+              '(`WORKER_CONFIG`).']
     write_markdown(args.out, lines)
     print(f'wrote {args.out}', file=sys.stderr)
     return 0 if same else 1
