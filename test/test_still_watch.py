@@ -247,3 +247,10 @@ def test_auto_without_gnss_waits_a_minute_before_taking_a_short_window_for_rest(
         first[ff] = out.t[np.flatnonzero(out.phase != 'coarse')[0]]
     assert first['auto'] == pytest.approx(coarse_stage.DRIVE_TEST_S, abs=0.02)
     assert first['reduced7'] == pytest.approx(10.0, abs=0.02)
+    # while held, the forecast counts the minute, not the configured 10 s (it said 10 s at
+    # 30 s into the held window: a time already past)
+    held = run_pipeline({**told, 'initial_latitude_deg': 34.0},
+                        without_gnss(simulate(scenario('static_mems', duration=30.0), 1)))
+    s = held.pipeline.status()
+    assert s['phase'] == 'coarse' and s['coarse_window_s'] == coarse_stage.DRIVE_TEST_S
+    assert s['expected_tilt_ready_at_s'] >= coarse_stage.DRIVE_TEST_S

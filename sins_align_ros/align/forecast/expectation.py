@@ -314,7 +314,9 @@ def _new_stage(p):
 
     The stamps: where the stage starts, and its first row (the window's end).
     The window lasts what the configured model gives (:func:`~.coarse_stage.
-    expected_duration`); the stage starts at its first sample with the reprocessing prior
+    expected_duration`), or the minute it is held to while ``auto`` waits for a drive to
+    show without GNSS (:meth:`~.coarse_stage.CoarseWindow.hold_for_drive_test`); the stage
+    starts at its first sample with the reprocessing prior
     (:mod:`~..stages.reprocess`) and the window's gyrocompass heading where it applies
     (:func:`~..stages.reprocess.gyrocompass_plan`, with the configured noise), unless
     ``coarse_reprocess`` is off (then at the window's end, from the coarse sigma). An
@@ -327,6 +329,9 @@ def _new_stage(p):
     position = p.position if p.position is not None else p.gnss.position(cfg, False)[0]
     lat = position[0]
     T = coarse_stage.expected_duration(p.noise, lat, cfg)
+    held = getattr(p.window, 'duration', T)
+    if held > cfg['coarse_duration']:     # held open for the drive test (no GNSS, MEMS gyro)
+        T = held
     sigma, _ = coarse_stage.coarse_sigma(p.noise, T, lat, False)
     heading = _heading_source(p)
     replay = cfg['coarse_reprocess']
