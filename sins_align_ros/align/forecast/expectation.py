@@ -329,9 +329,8 @@ def _new_stage(p):
     position = p.position if p.position is not None else p.gnss.position(cfg, False)[0]
     lat = position[0]
     T = coarse_stage.expected_duration(p.noise, lat, cfg)
-    held = getattr(p.window, 'duration', T)
-    if held > cfg['coarse_duration']:     # held open for the drive test (no GNSS, MEMS gyro)
-        T = held
+    if p.window.duration > cfg['coarse_duration']:    # held for the drive test (no GNSS)
+        T = p.window.duration
     sigma, _ = coarse_stage.coarse_sigma(p.noise, T, lat, False)
     heading = _heading_source(p)
     replay = cfg['coarse_reprocess']
