@@ -258,6 +258,11 @@ ALIGNMENT_PARAMS = (
           0.0, 10.0),
     Param('use_gnss_velocity', True, 'measure gnss/vel in the moving-base filters as well '
           'as the position (when gnss/vel messages arrive)'),
+    Param('zero_rate_at_rest', True, 'while a GNSS velocity shows the base at rest (kf, ukf, '
+          'vbakf, mvbakf, ckf, asckf), take the rate about the vertical as the Earth '
+          'rate\'s plus the gyro drift: the vertical drift is then known when the vehicle '
+          'drives off (docs/filters_navigation.md); false for a base that turns while its '
+          'antenna stands still (a turntable, a ship swinging at anchor)'),
     Param('use_reported_gnss_covariance', True, 'take the east/north GNSS position and '
           'velocity noise from each message\'s covariance when it is known, instead of '
           'gnss_pos_sigma_m / gnss_vel_sigma_mps (ckf, asckf without adaptation, kf, ukf; the '

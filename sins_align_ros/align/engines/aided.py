@@ -145,6 +145,8 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ProcessNoise, ForceMode
     i_phi = i_v = i_eps = None
     #: the engine keeps navigating after alignment (``~/odom``, navigation CSV columns)
     navigates = False
+    #: zero-rate epochs at rest (:mod:`.still_rate`)
+    still_rate = False
     #: the aided filters run one stage (only the stationary filter is re-initialised)
     restages = False
     #: the model estimates the accelerometer bias (else bias / g is added to the tilt)
@@ -191,6 +193,8 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ProcessNoise, ForceMode
         """Mechanize one sample; returns the current ``C_b_n`` (3, 3)."""
         dtheta, dv = self._correct_imu(dtheta, dv, dt)
         self._add_rotation(dtheta)
+        if self.still_rate:
+            self._count_still_rate(dtheta, dt)
         m = self.mech
         C = m.step(dtheta, dv, dt)
         self.sums.add(m, C, dt)
@@ -217,6 +221,8 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ProcessNoise, ForceMode
             j = i + (int(over[0]) + 1 if len(over) else len(w))
             dth, dvc = self._correct_imu(dtheta[i:j], dv[i:j], dt[i:j, None])
             self._add_rotation(dth)
+            if self.still_rate:
+                self._count_still_rate(dth, dt[i:j])
             out = self.mech.run(dth, dvc, dt[i:j], as_step=True)
             self.sums.add_block(out, dt[i:j])
             C[i:j] = out['C_b_n']
@@ -337,6 +343,8 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ProcessNoise, ForceMode
         self.n_updates += 1
         self.gate.accepted()
         self._feedback(fix)
+        if self.still_rate:
+            self._still_rate_epoch(self._at_rest())
         return upd
 
     # -- the contract's read-outs (base.AidedEngine) ---------------------------------------
@@ -399,7 +407,9 @@ class GnssAidedEngine(PriorShaping, ConsistencyRemedies, ProcessNoise, ForceMode
              'R_diag': [float(v) for v in np.diag(kf.R)],
              'R_scale': [float(v) for v in self.R_scale],
              'velocity_jitter_mps': math.sqrt(self.velocity_jitter_var),
-             'gyro_drift_dph': [float(v) for v in kf.x[self.i_eps] / DPH]}
+             'gyro_drift_dph': [float(v) for v in kf.x[self.i_eps] / DPH],
+             'zero_rate_epochs': getattr(self, 'n_still_rate', 0),
+             'zero_rate_refused': getattr(self, 'n_still_rate_refused', 0)}
         s.update(self.gate.status())
         if self.heading_gate is not None:
             s.update(self.heading_gate.status())

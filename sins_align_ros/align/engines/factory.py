@@ -89,6 +89,7 @@ def make_engine(cfg, noise, start, has_velocity, heading_known=True):
             'correlated over tens of seconds, and the heading comes from position '
             'differences; gnss_position_only_markov)' % cfg['gnss_position_markov_tau_s'])
     eng.velocity_jitter_var = cfg['imu_velocity_jitter_mps'] ** 2
+    eng.still_rate = eng.still_rate and bool(cfg['zero_rate_at_rest'])
     eng.set_force_error(cfg['accel_scale_factor_ppm'] * 1e-6,
                         cfg['accel_misalignment_ppm'] * 1e-6)
     if not heading_known:

@@ -84,6 +84,7 @@ from ..inputs.gnss_fix import GnssFix
 from .gnss_gate import FilterDiverged, GnssGate  # noqa: F401  (FilterDiverged re-exported)
 from .gyro_scale import GyroScaleStates
 from .prior_shaping import HEADING_PRIOR_MAX
+from .still_rate import REST_SPEED_MAX, StillRate
 
 I_V, I_P, I_PHI, I_EPS = slice(0, 2), slice(2, 4), slice(4, 7), slice(7, 10)
 #: accelerometer bias, body axes (13-state model only)
@@ -139,7 +140,7 @@ def true_specific_force(f_c, C_b_n, x):
     return la.C_n_nprime(x[I_PHI]).T @ (np.asarray(f_c) - C_b_n @ x[I_NAB])
 
 
-class MovingBaseAlignment(GyroScaleStates, GnssAidedEngine):
+class MovingBaseAlignment(GyroScaleStates, StillRate, GnssAidedEngine):
     """Mechanization + seed 000 filter; see the module docstring.
 
     ``i_phi``, ``i_v``, ``i_eps``: the misalignment, velocity-error and gyro-drift slices
@@ -212,6 +213,7 @@ class MovingBaseAlignment(GyroScaleStates, GnssAidedEngine):
     """
 
     i_phi, i_v, i_eps = I_PHI, I_V, I_EPS
+    still_rate = True
     #: seed 000's 10-state model has no accelerometer bias: bias / g is added to the
     #: tilt; set per instance (True with 13 states)
     has_accel_bias = False
@@ -260,6 +262,8 @@ class MovingBaseAlignment(GyroScaleStates, GnssAidedEngine):
         self.heading_lost = bool(hold_lost_heading) and self.heading_prior_var is not None
         #: seconds the heading has been lost
         self.lost_s = 0.0
+        #: horizontal speed (m/s) of the last fix with a velocity (:meth:`_at_rest`)
+        self._fix_speed = math.inf
         #: computed attitude (3, 3) when the drift was last turned (:meth:`_interval_ended`,
         #: :meth:`_feedback`)
         self._C_drift = self.mech.C_b_n.copy()
@@ -345,7 +349,28 @@ class MovingBaseAlignment(GyroScaleStates, GnssAidedEngine):
         if self.velocity_measured:
             z += [m.v_n[0] - fix.v_n[0], m.v_n[1] - fix.v_n[1]]
             idx += [2, 3]
+            self._fix_speed = math.hypot(fix.v_n[0], fix.v_n[1])
         return np.array(z), np.array(idx)
+
+    def _at_rest(self):
+        """Tell whether the last fix measured the base at rest (:mod:`.still_rate`).
+
+        Its horizontal speed within 3 sigmas of the velocity noise, at most
+        :data:`~.still_rate.REST_SPEED_MAX`.
+        """
+        if not self.velocity_measured:
+            return False
+        R = np.asarray(self.kf.R)
+        var_v = max(float(R[2, 2]), float(R[3, 3]))
+        return self._fix_speed <= min(3.0 * math.sqrt(var_v), REST_SPEED_MAX)
+
+    def _drift_row(self, H, C):
+        """Put the vertical drift's row into ``H`` (n,) (:mod:`.still_rate`).
+
+        The drift states are resolved in the computed frame (module docstring): the row
+        is their vertical component's.
+        """
+        H[I_EPS.start + 2] = 1.0
 
     def _feedback(self, fix):
         """Move the estimated errors into the mechanization (closed loop).

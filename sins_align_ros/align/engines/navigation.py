@@ -39,6 +39,7 @@ from .aided import GnssAidedEngine
 from .gnss_gate import GnssGate
 from .gnss_markov_states import GnssMarkovStates
 from .gyro_scale import GyroScaleStates
+from .still_rate import REST_SPEED_MAX, StillRate
 from .heading_range import (HEADING_CLAIM_MAX_VAR, HEADING_LINEAR_MAX_DEG,
                             HEADING_LINEAR_MAX_VAR, HeadingRange)
 
@@ -89,7 +90,8 @@ def model_noise(n_states, sigma_phi, sigma_v, sigma_p, gyro, accel, gyro_arw, ac
     return P0, Qc
 
 
-class IntegratedNavigation(HeadingRange, GyroScaleStates, GnssMarkovStates, GnssAidedEngine):
+class IntegratedNavigation(HeadingRange, GyroScaleStates, GnssMarkovStates, StillRate,
+                           GnssAidedEngine):
     """Mechanization + seed 001/003 filter; see the module docstring.
 
     The base of the navigation engines: a subclass makes the filter
@@ -129,6 +131,7 @@ class IntegratedNavigation(HeadingRange, GyroScaleStates, GnssMarkovStates, Gnss
 
     i_phi, i_v = lc.I_PHI, lc.I_V
     navigates = True
+    still_rate = True
     MEAS_ENU = np.arange(6)             # position then velocity, each E, N, U
     #: states of the seed model: seed 001's 15 (seed 003's 18:
     #: :class:`~.navigation_filters.UnscentedNavigation`)
@@ -157,6 +160,8 @@ class IntegratedNavigation(HeadingRange, GyroScaleStates, GnssMarkovStates, Gnss
         self.heading_lost = bool(heading_lost)
         #: the last fix showed the base under way (:meth:`measurement`)
         self._under_way = False
+        #: horizontal speed (m/s) of the last fix with a velocity
+        self._fix_speed = math.inf
         #: seconds the heading has been lost (the wait for a nonlinear acquisition)
         self.lost_s = 0.0
         self.track_heading_sigma = math.radians(float(track_heading_sigma_deg))
@@ -316,8 +321,22 @@ class IntegratedNavigation(HeadingRange, GyroScaleStates, GnssMarkovStates, Gnss
             # rest it is the tilt error alone, which must be corrected: a still MEMS base,
             # its tilt frozen on such intervals, ended 4.8 sigma off)
             var_v = max(float(self.kf.R[3, 3]), float(self.kf.R[4, 4]))
-            self._under_way = math.hypot(v[0], v[1]) > 3.0 * math.sqrt(var_v)
+            self._fix_speed = math.hypot(v[0], v[1])
+            self._under_way = self._fix_speed > 3.0 * math.sqrt(var_v)
         return np.array(z), np.array(idx)
+
+    def _at_rest(self):
+        """Tell whether the last fix measured the base at rest (a velocity, not under way)."""
+        return (self.velocity_measured and not self._under_way
+                and self._fix_speed <= REST_SPEED_MAX)
+
+    def _rate_compensation(self):
+        """Return the drift (3,) rad/s the increments are compensated by (:meth:`_correct_imu`)."""
+        return self.gyro_bias
+
+    def _eps_slices(self):
+        """Return the gyro-drift slices: one state, or the constant and the Markov one."""
+        return (lc.I_EPS15,) if self.n0 == 15 else (lc.I_EPSB, lc.I_EPSR)
 
     def _feedback(self, fix):
         """Feed the whole estimate back (module docstring); the error state becomes zero."""

@@ -1,0 +1,148 @@
+"""The vertical gyro drift measured while a GNSS-aided base stands still (zero rate).
+
+A car at a traffic light, a robot waiting for its mission: GNSS says the base is not
+moving, so the body does not turn either (a vehicle at rest does not spin in place). Its
+gyros then measure the Earth rate and their drift alone. The Earth rate's vertical part,
+``Omega sin L``, does not depend on the heading, so the rate about the local vertical
+measures the vertical gyro drift to ``ARW / sqrt(T)`` after ``T`` s at rest, whatever the
+heading is. Without this measurement the drift is unobservable at rest (it only turns an
+unmeasured heading), and a MEMS vehicle that stood still for half a minute starts to
+drive with its turn-on drift whole: 200 deg/h turned the heading of the simulated MEMS
+car with RTK by a degree in the 15 s after it drove off (``car_rtk``, issue 46).
+
+The measurement, at every GNSS epoch whose fix shows the base at rest
+(:meth:`~.navigation.IntegratedNavigation.measurement`'s ``_under_way`` false, with a
+velocity): the interval's mean body rate ``w_b`` (compensated as the mechanization used it),
+taken about the local vertical, minus the Earth rate's vertical part::
+
+    z = (C_b_n w_b)_U - Omega sin L = (C_b_n eps)_U - Omega cos L phi_E + noise
+
+(``C_b_n`` the estimate, ``C_true = (I + [phi x]) C_b_n``; ``eps`` the drift states). Its
+variance is the larger of the model's ``ARW^2 / T`` (its current Qc, widened by the
+monitors) and the scatter of the interval's own rate samples over their number, so a
+vibrating or rocking base is not taken for a quiet one. The epoch is gated with the GNSS
+gate's probability: a base that turns while its antenna stands (a robot spinning in
+place) is refused, and a refused epoch is not a GNSS rejection.
+
+The navigation filters (:mod:`.navigation`: drift in body axes, fed back into the
+compensation) and seed 000's (:mod:`.moving`: drift resolved in the computed frame, kept
+in the state, so the row is that state's vertical component) take it; seed 004's
+(:mod:`.robust`, a ship's or USV's) does not.
+
+Not from a seed: the seeds' moving-base filters take GNSS position and velocity alone.
+Zero-angular-rate updates are common practice in pedestrian and land INS (e.g. Groves,
+*Principles of GNSS, Inertial and Multisensor Integrated Navigation*, 2nd ed., sec.
+15.3.3); the horizontal rows are left out here because their Earth-rate term carries
+the heading, which may still be far outside the linear model when the base rests.
+"""
+import math
+
+import numpy as np
+
+from ...nav import earth
+from ..inputs.heading import heading_update
+from ...filters.chi2 import chi2_quantile
+from .gnss_gate import FilterDiverged
+
+#: the fastest fix (m/s) a base is taken at rest at: 3 sigmas of the velocity noise, at
+#: most this (an engine whose velocity noise was widened must not take a drive for rest)
+REST_SPEED_MAX = 0.5
+#: the gate's probability when the GNSS gate is off: a turning base is refused anyway
+GATE_PROBABILITY = 0.9999
+
+
+class StillRate:
+    """Zero-rate epochs of a base at rest; a mixin of the GNSS-aided engines.
+
+    Uses the engine's ``kf``, ``mech``, ``Qc``, ``gate``, ``i_phi``, ``_eps_slices``,
+    ``gyro_bias`` and ``_feedback``; the engine calls :meth:`_count_still_rate` with each
+    block of compensated increments and :meth:`_still_rate_epoch` after each GNSS epoch.
+    """
+
+    #: zero-rate epochs used, refused
+    n_still_rate = n_still_rate_refused = 0
+
+    def _still_rate_start(self):
+        """Start a new interval of rate sums (at every GNSS epoch)."""
+        self._sr_sum = np.zeros(3)
+        self._sr_sq = np.zeros(3)
+        self._sr_n = 0
+        self._sr_T = 0.0
+        self._sr_eps = np.array(self._rate_compensation(), dtype=float)
+
+    def _count_still_rate(self, dtheta, dt):
+        """Add compensated increments ``dtheta`` ((3,) or (N, 3), rad) over ``dt`` s."""
+        if not hasattr(self, '_sr_sum'):
+            self._still_rate_start()
+        d = np.asarray(dtheta, dtype=float)
+        if d.ndim == 1:                 # one sample (the live node's path)
+            r = d / dt
+            self._sr_sum += d
+            self._sr_sq += r * r
+            self._sr_n += 1
+            self._sr_T += float(dt)
+            return
+        w = np.asarray(dt, dtype=float).reshape(-1)
+        r = d / w[:, None]
+        self._sr_sum += np.add.reduce(d, axis=0)
+        self._sr_sq += np.add.reduce(r * r, axis=0)
+        self._sr_n += len(d)
+        self._sr_T += float(np.add.reduce(w))
+
+    def _still_rate_epoch(self, at_rest):
+        """Update with the zero rate of the interval just ended when ``at_rest``."""
+        if not hasattr(self, '_sr_sum'):
+            self._still_rate_start()
+            return None
+        T, n = self._sr_T, self._sr_n
+        if not at_rest or T <= 0.0 or n < 2:
+            self._still_rate_start()
+            return None
+        w_b = self._sr_sum / T - (self._rate_compensation() - self._sr_eps)
+        scatter = np.maximum(self._sr_sq / n - (self._sr_sum / T) ** 2, 0.0)
+        self._still_rate_start()
+        m, kf = self.mech, self.kf
+        C = m.C_b_n
+        y = float(C[2] @ w_b) - earth.OMEGA_IE * math.sin(m.lat)
+        H = self._zero_rate_row(C, m.lat)
+        k = np.arange(len(kf.x))
+        q_arw = float(self.Qc[k[self.i_phi][2]])
+        var = max(q_arw / T, float(C[2] ** 2 @ scatter) / n)
+        max_nis = chi2_quantile(self.gate.probability or GATE_PROBABILITY, 1)
+        x, P, y, S, ok = heading_update(kf.x, kf.P, H, y - float(H @ kf.x), var, max_nis)
+        if not ok:
+            self.n_still_rate_refused += 1
+            return False
+        if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
+            raise FilterDiverged('filter diverged in a zero-rate update')
+        kf.x, kf.P = x, P
+        self.n_still_rate += 1
+        self._feedback(None)
+        return True
+
+    def _rate_compensation(self):
+        """Return the drift (3,) rad/s the increments are compensated by (none here)."""
+        return np.zeros(3)
+
+    def _zero_rate_row(self, C, lat):
+        """Return the measurement row (n,) of the vertical rate's error.
+
+        ``-Omega cos L phi_E`` (the tilt turns the horizontal Earth rate into the
+        vertical), plus the drift's vertical component (:meth:`_drift_row`); ``C`` (3, 3)
+        the attitude, ``lat`` rad.
+        """
+        n = len(self.kf.x)
+        H = np.zeros(n)
+        H[np.arange(n)[self.i_phi][0]] = -earth.OMEGA_IE * math.cos(lat)
+        self._drift_row(H, C)
+        return H
+
+    def _drift_row(self, H, C):
+        """Put the vertical drift's row into ``H`` (n,): states in body axes, ``(C eps)_U``."""
+        k = np.arange(len(H))
+        for sl in self._eps_slices():
+            H[k[sl]] = C[2]
+
+    def _eps_slices(self):
+        """Return the slices of the gyro-drift states (their sum is the drift)."""
+        return (self.i_eps,)
