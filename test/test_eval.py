@@ -53,7 +53,7 @@ def test_run_has_the_truth_of_every_row_and_its_final_error(still_run):
     assert np.array_equal(run.final.phi, phi)
     assert np.array_equal(run.final.euler, euler_error(run.out.euler[-1], truth))
     assert run.final.nees == pytest.approx(nees(phi, run.out.P_phi[-1]))
-    # the 60-s window ends at its first check, 20 s (coarse_stage.good_enough)
+    # the 60-s window ends at its first check, 20 s (coarse_window.good_enough)
     assert run.final.known and run.restarts == 0 and run.t_fine == pytest.approx(20.0)
     assert run.speed > 10.0 and run.span == pytest.approx(240.0 - 0.01)
     # the series is NaN during coarse alignment (no attitude), the final error at its end

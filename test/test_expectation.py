@@ -126,7 +126,7 @@ def test_still_tactical_gyro_forecasts_never_with_the_heading_limit_and_a_ready_
     log, run, t_al, sig = _forecasts('static_tactical', 200.0, every=50.0)
     assert math.isinf(t_al)
     # the window ends once the rest of it would not narrow the coarse sigma by 10 %
-    # (coarse_stage.good_enough): 21 s for the tactical grade, 60 s before issue 46
+    # (coarse_window.good_enough): 21 s for the tactical grade, 60 s before issue 46
     t_fine = float(run.out.t[np.argmax(run.out.phase != 'coarse')] - run.data.imu.t[0])
     assert 20.0 <= t_fine < 30.0
     for t, _, e in log:

@@ -113,7 +113,7 @@ def test_one_sample_at_a_time_equals_one_batch():
     """The node feeds one message at a time, the replay whole arrays: same numbers.
 
     The window of 30 s may end at its first check, 10.5 s (good enough on a still
-    navigation-grade base, coarse_stage.good_enough): inside the replay's block too."""
+    navigation-grade base, coarse_window.good_enough): inside the replay's block too."""
     sc, st, b = simulate('static_navigation', seconds=45.0)
     cfg = {'initial_latitude_deg': 34.0, 'coarse_duration': 30.0, 'coarse_min_duration': 10.5,
            'use_gnss_position': False}

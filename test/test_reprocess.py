@@ -6,7 +6,7 @@ from sins_align_ros.align.engines.factory import noise_spec
 from sins_align_ros.align.params import defaults
 from sins_align_ros.align.pipeline import ALIGNED, COARSE, AlignmentPipeline
 from sins_align_ros.align.stages import reprocess
-from sins_align_ros.align.stages.coarse_stage import coarse_sigma
+from sins_align_ros.align.stages.coarse_window import coarse_sigma
 from sins_align_ros.eval.errors import attitude_errors
 from sins_align_ros.nav import coarse
 from sins_align_ros.nav.frames import attitude_error, euler_to_dcm

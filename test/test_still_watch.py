@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from sins_align_ros.align.engines import still_watch
-from sins_align_ros.align.stages import coarse_stage
+from sins_align_ros.align.stages import coarse_window
 from sins_align_ros.align.engines.still_watch import (MOVING_WITHOUT_GNSS, N_GATED, Coast,
                                                       MotionWatch, cruise_floor)
 from sins_align_ros.eval.integrity import run_integrity
@@ -228,7 +228,7 @@ def test_auto_without_gnss_waits_a_minute_before_taking_a_short_window_for_rest(
 
     Over 10 s a car pulling away integrates to a straight line, as a tilt does; the
     still-base filter started on it published a pitch 11 deg off under a 0.5-deg sigma.
-    Held to a minute (``coarse_stage.DRIVE_TEST_S``) the window shows the drive: no
+    Held to a minute (``coarse_window.DRIVE_TEST_S``) the window shows the drive: no
     attitude, and the reason asks for GNSS. A still filter named keeps the 10 s.
     """
     sc = scenario('car_consumer', duration=350.0)
@@ -245,12 +245,12 @@ def test_auto_without_gnss_waits_a_minute_before_taking_a_short_window_for_rest(
     for ff in ('auto', 'reduced7'):
         out = run_pipeline({**told, 'fine_filter': ff, 'initial_latitude_deg': 34.0}, still).out
         first[ff] = out.t[np.flatnonzero(out.phase != 'coarse')[0]]
-    assert first['auto'] == pytest.approx(coarse_stage.DRIVE_TEST_S, abs=0.02)
+    assert first['auto'] == pytest.approx(coarse_window.DRIVE_TEST_S, abs=0.02)
     assert first['reduced7'] == pytest.approx(10.0, abs=0.02)
     # while held, the forecast counts the minute, not the configured 10 s (it said 10 s at
     # 30 s into the held window: a time already past)
     held = run_pipeline({**told, 'initial_latitude_deg': 34.0},
                         without_gnss(simulate(scenario('static_mems', duration=30.0), 1)))
     s = held.pipeline.status()
-    assert s['phase'] == 'coarse' and s['coarse_window_s'] == coarse_stage.DRIVE_TEST_S
-    assert s['expected_tilt_ready_at_s'] >= coarse_stage.DRIVE_TEST_S
+    assert s['phase'] == 'coarse' and s['coarse_window_s'] == coarse_window.DRIVE_TEST_S
+    assert s['expected_tilt_ready_at_s'] >= coarse_window.DRIVE_TEST_S

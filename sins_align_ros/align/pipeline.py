@@ -26,7 +26,7 @@ import math
 
 import numpy as np
 
-from .stages import coarse_stage
+from .stages import coarse_stage, coarse_window
 from .inputs import motion
 from . import params as prm
 from .forecast.expectation import Forecaster
@@ -81,7 +81,7 @@ class AlignmentPipeline:
     def reset(self, keep_gnss_history=False):
         """Forget everything but the parameters and the GNSS position; phase -> waiting."""
         self.clock = Clock()
-        self.window = coarse_stage.CoarseWindow(self.cfg['coarse_duration'])
+        self.window = coarse_window.CoarseWindow(self.cfg['coarse_duration'])
         self.coarse_info = {}
         self.check = None
         self.cfg = dict(self.configured)
@@ -381,7 +381,7 @@ class AlignmentPipeline:
     def _finish_coarse(self):
         window = self.window.arrays(self.clock.t_first)
         t_end = self.clock.t_last
-        self.window = coarse_stage.CoarseWindow(self.cfg['coarse_duration'])
+        self.window = coarse_window.CoarseWindow(self.cfg['coarse_duration'])
         start, reason = hand_over(window, self.cfg, self.noise, self.clock, self.gnss,
                                   self.headings, self.install)
         if reason is not None:

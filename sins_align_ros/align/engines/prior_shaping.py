@@ -34,7 +34,7 @@ def capped_heading_prior(P0, k):
     """Return ``(P0', var0)``: P0 (n, n) with the heading variance (row ``k``) at most the cap's.
 
     The coarse stage hands over a conservative heading bound, up to 90 deg for a gyro
-    that cannot gyrocompass (``coarse_stage.coarse_sigma``). A cubature filter puts its
+    that cannot gyrocompass (``coarse_window.coarse_sigma``). A cubature filter puts its
     points at +-sqrt(n) sigma: 90 deg with 12-13 states puts them past +-310 deg, beyond
     the circle's wrap, where the cubature means and cross-covariances lose their meaning
     (seed 004's USV, low grade told its sensors: 10 of 10 runs silent-wrong, one 175

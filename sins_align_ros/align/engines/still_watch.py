@@ -214,7 +214,7 @@ class StillWatch:
 
     ``engine`` the :class:`~.stationary.StationaryEngine`; ``rate_hz`` its epoch rate;
     ``rest_s`` the rest it needs to resume (``coarse_duration``, at least the drive test's
-    minute: :data:`~..stages.coarse_stage.DRIVE_TEST_S`); ``gyro_instability``
+    minute: :data:`~..stages.coarse_window.DRIVE_TEST_S`); ``gyro_instability``
     (rad/s) the varying part of the gyro bias, counted with the constant one while coasting.
     """
 

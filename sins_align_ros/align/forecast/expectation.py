@@ -8,7 +8,7 @@ one of two ways, by what that covariance depends on:
 * **Still base** (the stationary filters). Zero-velocity measurements of a base at rest
   make the filter's covariance independent of the data, so a *shadow run* forecasts it
   exactly: a copy of the fine stage (before fine alignment: a new one, started from the
-  coarse sigma the configured model leaves, :func:`~.coarse_stage.coarse_sigma`) fed with
+  coarse sigma the configured model leaves, :func:`~.coarse_window.coarse_sigma`) fed with
   the increments of a perfectly still IMU at the latitude, with the same convergence rule,
   restaging and bounds. The shadow's filter epochs come every ``1 / SHADOW_HZ`` s (or at the
   filter's own period if slower) with the zero-velocity variance scaled by the ratio of the
@@ -58,7 +58,7 @@ import numpy as np
 
 from ...nav import earth
 from ...nav.frames import dcm_to_euler, euler_cov_from_phi_cov
-from ..stages import coarse_stage
+from ..stages import coarse_stage, coarse_window
 from ..stages.aligned_gate import SETTLE_S
 from ..engines.factory import is_aided
 from ..engines.gyrocompass import GyroSegments
@@ -315,7 +315,7 @@ def _new_stage(p):
     The stamps: where the stage starts, and its first row (the window's end).
     The window lasts what the configured model gives (:func:`~.coarse_stage.
     expected_duration`), or the minute it is held to while ``auto`` waits for a drive to
-    show without GNSS (:meth:`~.coarse_stage.CoarseWindow.hold_for_drive_test`); the stage
+    show without GNSS (:meth:`~.coarse_window.CoarseWindow.hold_for_drive_test`); the stage
     starts at its first sample with the reprocessing prior
     (:mod:`~..stages.reprocess`) and the window's gyrocompass heading where it applies
     (:func:`~..stages.reprocess.gyrocompass_plan`, with the configured noise), unless
@@ -328,10 +328,10 @@ def _new_stage(p):
     cfg['fine_filter'] = choose_filter(cfg, False)
     position = p.position if p.position is not None else p.gnss.position(cfg, False)[0]
     lat = position[0]
-    T = coarse_stage.expected_duration(p.noise, lat, cfg)
+    T = coarse_window.expected_duration(p.noise, lat, cfg)
     if p.window.duration > cfg['coarse_duration']:    # held for the drive test (no GNSS)
         T = p.window.duration
-    sigma, _ = coarse_stage.coarse_sigma(p.noise, T, lat, False)
+    sigma, _ = coarse_window.coarse_sigma(p.noise, T, lat, False)
     heading = _heading_source(p)
     replay = cfg['coarse_reprocess']
     if replay:

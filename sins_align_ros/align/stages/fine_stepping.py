@@ -30,7 +30,7 @@ from ..engines.base import AidedEngine, StillEngine
 from .aligned_gate import SettleTest
 from ..engines.gnss_gate import FilterDiverged
 from ..engines.still_watch import StillWatch
-from .coarse_stage import DRIVE_TEST_S
+from .coarse_window import DRIVE_TEST_S
 from ..inputs.imu_input import intervals
 from ..output import Rows, one_row
 from ...units import DPH

@@ -4,7 +4,7 @@ Issue 46. The coarse window's samples used to be thrown away once the coarse att
 found: the fine filter began at the window's end and had to gather the same information
 again, so a still navigation-grade base that the data had aligned in 20 s waited for the
 filter's own 20 s and more. Here the fine stage starts where the window began and runs
-over the window's stored samples (:meth:`~.coarse_stage.CoarseWindow.arrays`) before it
+over the window's stored samples (:meth:`~.coarse_window.CoarseWindow.arrays`) before it
 goes on with the live ones; at the window's end it holds what a filter started at the
 first sample would hold. As PSINS's ``CAlignsv`` does with its inertial-frame coarse
 alignment (there two samples per incoming sample until it catches up; here at once, the
@@ -103,7 +103,7 @@ from ...models.stationary import sees_earth_rate
 from ...nav import coarse, earth
 from ..engines import gyrocompass
 from ..inputs.heading import LINEAR_MAX, yaw_of
-from .coarse_stage import coarse_sigma, seen_noise
+from .coarse_window import coarse_sigma, seen_noise
 
 #: the prior claims the white-noise information of this share of the window, at 3 sigma
 PRIOR_SHARE = 0.1
@@ -136,7 +136,7 @@ def measured_heading_prior(res, measured_sigma):
 def prior_sigma(noise, T, lat, moving, sigma):
     """Return the reprocessing prior (3,) rad of a window of ``T`` s (module docstring).
 
-    :func:`~.coarse_stage.coarse_sigma` for :data:`PRIOR_SHARE` of the window (``noise``
+    :func:`~.coarse_window.coarse_sigma` for :data:`PRIOR_SHARE` of the window (``noise``
     the sensor model, ``lat`` rad, ``moving`` the window showed motion), never narrower
     than the coarse result's own ``sigma`` (3,).
     """
@@ -176,7 +176,7 @@ def aided_start(res, window, gnss, cfg, install=None):
     velocity at its first sample (``res.v_n_start``); the position the fix nearest the
     start, moved to it with that velocity and from the antenna to the IMU. The prior is
     the coarse sigma, which is three times the 1-sigma the window's data give in each of
-    its terms (:func:`~.coarse_stage.coarse_sigma`, the GNSS velocity's term of
+    its terms (:func:`~.coarse_window.coarse_sigma`, the GNSS velocity's term of
     :func:`~.coarse_stage.moving_base`), so it claims at most a ninth of the information
     the filter then takes from the same samples (the module docstring); a heading from
     the GNSS track keeps the track's sigma (``track_heading_sigma_deg``: the course, not
@@ -206,7 +206,7 @@ def gyrocompass_plan(noise, lat, T, moving=False):
     """Return ``(var, rate_var, span)`` of a window's gyrocompass heading, or None.
 
     ``noise``: the sensor model with the densities the samples show
-    (:func:`~.coarse_stage.seen_noise`); ``lat`` rad; ``T`` s the window; ``moving``: it
+    (:func:`~.coarse_window.seen_noise`); ``lat`` rad; ``T`` s the window; ``moving``: it
     showed motion. ``var`` rad^2: the heading's white-noise variance
     (:func:`~..engines.gyrocompass.heading_variance_rate` over ``T``); ``span`` s: the
     data over which such headings may be taken (:func:`~..engines.gyrocompass.gyro_span`).
@@ -234,7 +234,7 @@ def window_heading(fine, C_b_n, window, noise, lat, method, moving):
     ``lat`` rad. The heading is one measurement
     (:meth:`~..engines.stationary.StationaryEngine.gyrocompass_update`, the biases in its
     row), its variance from :func:`gyrocompass_plan` with the noises the samples show
-    where they exceed the configured ones (:func:`~.coarse_stage.seen_noise`). The live
+    where they exceed the configured ones (:func:`~.coarse_window.seen_noise`). The live
     samples after the window (``skip`` the window's samples, which :class:`CatchUp` runs
     next) give more such headings in segments
     (:class:`~..engines.gyrocompass.GyroSegments`). Returns the heading's 1-sigma (rad),
