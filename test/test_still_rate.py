@@ -64,3 +64,17 @@ def test_a_base_that_turns_while_its_antenna_stands_is_refused():
     status = run.pipeline.engine.status()
     assert 120 <= status['zero_rate_refused'] <= 130, status
     assert 10 <= status['zero_rate_epochs'] <= 30, status
+
+
+def test_a_swaying_moored_ship_is_never_taken_for_rest():
+    """A moored ship with a MEMS IMU (seed 000's sway: roll 4 deg / 5 s, pitch 2 deg / 3 s,
+    yaw 3 deg / 7 s): its GNSS velocity shows it at rest, but it rolls and pitches as it
+    yaws, so no epoch is taken (a zero-rate epoch at the instants the yaw rate passes zero
+    turned its heading 150 deg RMS off and its north tilt from 10' to 27' RMS, told right);
+    the same IMU on a still base takes every epoch after the first."""
+    sway = run_scenario('ship_sway@mems', 1000, 'ckf', duration=120.0, cached=True)
+    status = sway.pipeline.engine.status()
+    assert status['zero_rate_epochs'] == 0 and status['zero_rate_refused'] > 50, status
+    still = run_scenario('static_mems', 1000, 'kf', duration=120.0, cached=True)
+    status = still.pipeline.engine.status()
+    assert status['zero_rate_epochs'] > 50 and status['zero_rate_refused'] == 0, status

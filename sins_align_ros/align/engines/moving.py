@@ -364,13 +364,13 @@ class MovingBaseAlignment(GyroScaleStates, StillRate, GnssAidedEngine):
         var_v = max(float(R[2, 2]), float(R[3, 3]))
         return self._fix_speed <= min(3.0 * math.sqrt(var_v), REST_SPEED_MAX)
 
-    def _drift_row(self, H, C):
-        """Put the vertical drift's row into ``H`` (n,) (:mod:`.still_rate`).
+    def _drift_row(self, H, C, axis=2):
+        """Put the drift's row about ENU ``axis`` into ``H`` (n,) (:mod:`.still_rate`).
 
         The drift states are resolved in the computed frame (module docstring): the row
-        is their vertical component's.
+        is their component's about that axis.
         """
-        H[I_EPS.start + 2] = 1.0
+        H[I_EPS.start + axis] = 1.0
 
     def _feedback(self, fix):
         """Move the estimated errors into the mechanization (closed loop).

@@ -47,6 +47,9 @@ from .gnss_gate import FilterDiverged
 #: the fastest fix (m/s) a base is taken at rest at: 3 sigmas of the velocity noise, at
 #: most this (an engine whose velocity noise was widened must not take a drive for rest)
 REST_SPEED_MAX = 0.5
+#: epochs in a row the body must look still (:meth:`StillRate._turning`) before its rate
+#: is taken: the first epoch of a stop, and a swaying base's lucky instant, are not
+STILL_EPOCHS = 2
 #: the gate's probability when the GNSS gate is off: a turning base is refused anyway
 GATE_PROBABILITY = 0.9999
 
@@ -61,6 +64,8 @@ class StillRate:
 
     #: zero-rate epochs used, refused
     n_still_rate = n_still_rate_refused = 0
+    #: epochs in a row the body has looked still
+    _still_run = 0
 
     def _still_rate_start(self):
         """Start a new interval of rate sums (at every GNSS epoch)."""
@@ -90,35 +95,71 @@ class StillRate:
         self._sr_T += float(np.add.reduce(w))
 
     def _still_rate_epoch(self, at_rest):
-        """Update with the zero rate of the interval just ended when ``at_rest``."""
+        """Update with the zero rate of the interval just ended when ``at_rest``.
+
+        The body must look still on this epoch and the one before it
+        (:data:`STILL_EPOCHS`): its vertical rate inside the gate (the GNSS gate's
+        probability) and its horizontal rate too (:meth:`_turning`). Returns True (used),
+        False (refused: turning) or None (not at rest, or the first still epoch).
+        """
         if not hasattr(self, '_sr_sum'):
             self._still_rate_start()
             return None
         T, n = self._sr_T, self._sr_n
         if not at_rest or T <= 0.0 or n < 2:
             self._still_rate_start()
+            self._still_run = 0
             return None
         w_b = self._sr_sum / T - (self._rate_compensation() - self._sr_eps)
         scatter = np.maximum(self._sr_sq / n - (self._sr_sum / T) ** 2, 0.0)
         self._still_rate_start()
         m, kf = self.mech, self.kf
         C = m.C_b_n
-        y = float(C[2] @ w_b) - earth.OMEGA_IE * math.sin(m.lat)
-        H = self._zero_rate_row(C, m.lat)
         k = np.arange(len(kf.x))
         q_arw = float(self.Qc[k[self.i_phi][2]])
-        var = max(q_arw / T, float(C[2] ** 2 @ scatter) / n)
-        max_nis = chi2_quantile(self.gate.probability or GATE_PROBABILITY, 1)
-        x, P, y, S, ok = heading_update(kf.x, kf.P, H, y - float(H @ kf.x), var, max_nis)
-        if not ok:
+        # the measurement noise about each ENU axis: the model's ARW over T, or the
+        # interval's own scatter where larger
+        R = np.maximum(q_arw / T, (C ** 2 @ scatter) / n)
+        w_n = C @ w_b
+        p = self.gate.probability or GATE_PROBABILITY
+        H = self._zero_rate_row(C, m.lat)
+        y = float(w_n[2]) - earth.OMEGA_IE * math.sin(m.lat) - float(H @ kf.x)
+        S = float(H @ kf.P @ H) + float(R[2])
+        if y * y / S > chi2_quantile(p, 1) or self._turning(w_n, R, C, m.lat, p):
+            self._still_run = 0
             self.n_still_rate_refused += 1
             return False
+        self._still_run += 1
+        if self._still_run < STILL_EPOCHS:
+            return None
+        x, P, y, S, ok = heading_update(kf.x, kf.P, H, y, float(R[2]))
         if not (np.all(np.isfinite(x)) and np.all(np.isfinite(P))):
             raise FilterDiverged('filter diverged in a zero-rate update')
         kf.x, kf.P = x, P
         self.n_still_rate += 1
         self._feedback(None)
         return True
+
+    def _turning(self, w_n, R, C, lat, p):
+        """Tell whether the interval's mean rate ``w_n`` (3,) ENU shows the body turning.
+
+        Its horizontal part against the Earth rate's, ``(0, Omega cos L)``, with the
+        drift's variance about each axis, the noise ``R`` (3,) and a heading error's share
+        of the Earth rate (up to ``2 Omega cos L``, conservatively); the test is the
+        chi-square quantile of ``p`` with 2 degrees of freedom. A swaying ship rolls and
+        pitches as it yaws: at the instants its yaw rate passes zero, its roll or pitch rate
+        does not, and the epoch is not taken for rest.
+        """
+        wc = earth.OMEGA_IE * math.cos(lat)
+        r = w_n[:2] - np.array([0.0, wc])
+        P = self.kf.P
+        nis = 0.0
+        for a in (0, 1):
+            h = np.zeros(len(self.kf.x))
+            self._drift_row(h, C, a)
+            var = float(h @ P @ h) + float(R[a]) + (2.0 * wc) ** 2
+            nis += r[a] ** 2 / var
+        return nis > chi2_quantile(p, 2)
 
     def _rate_compensation(self):
         """Return the drift (3,) rad/s the increments are compensated by (none here)."""
@@ -137,11 +178,11 @@ class StillRate:
         self._drift_row(H, C)
         return H
 
-    def _drift_row(self, H, C):
-        """Put the vertical drift's row into ``H`` (n,): states in body axes, ``(C eps)_U``."""
+    def _drift_row(self, H, C, axis=2):
+        """Put the drift's row about ENU ``axis`` into ``H`` (n,): body-axis states, ``C eps``."""
         k = np.arange(len(H))
         for sl in self._eps_slices():
-            H[k[sl]] = C[2]
+            H[k[sl]] = C[axis]
 
     def _eps_slices(self):
         """Return the slices of the gyro-drift states (their sum is the drift)."""
