@@ -10,19 +10,22 @@ unmeasured heading), and a MEMS vehicle that stood still for half a minute start
 drive with its turn-on drift whole: 200 deg/h turned the heading of the simulated MEMS
 car with RTK by a degree in the 15 s after it drove off (``car_rtk``, issue 46).
 
-The measurement, at every GNSS epoch whose fix shows the base at rest
-(:meth:`~.navigation.IntegratedNavigation.measurement`'s ``_under_way`` false, with a
-velocity): the interval's mean body rate ``w_b`` (compensated as the mechanization used it),
-taken about the local vertical, minus the Earth rate's vertical part::
+The measurement, at every GNSS epoch whose fix shows the base at rest (the engine's
+``_at_rest``: a velocity within 3 of its sigmas and :data:`REST_SPEED_MAX`): the
+interval's mean body rate ``w_b`` (compensated as the mechanization used it), taken about
+the local vertical, minus the Earth rate's vertical part::
 
     z = (C_b_n w_b)_U - Omega sin L = (C_b_n eps)_U - Omega cos L phi_E + noise
 
 (``C_b_n`` the estimate, ``C_true = (I + [phi x]) C_b_n``; ``eps`` the drift states). Its
 variance is the larger of the model's ``ARW^2 / T`` (its current Qc, widened by the
 monitors) and the scatter of the interval's own rate samples over their number, so a
-vibrating or rocking base is not taken for a quiet one. The epoch is gated with the GNSS
-gate's probability: a base that turns while its antenna stands (a robot spinning in
-place) is refused, and a refused epoch is not a GNSS rejection.
+vibrating or rocking base is not taken for a quiet one. The body must look still on the
+epoch and on the one before (:data:`STILL_EPOCHS`): the vertical innovation inside the
+GNSS gate's probability, and the horizontal rate inside the drift's and the Earth rate's
+reach (:meth:`StillRate._turning`). A base that turns while its antenna stands (a robot
+spinning in place) is refused, and so is a moored ship, which rolls and pitches at the
+instants its yaw rate passes zero; a refused epoch is not a GNSS rejection.
 
 The navigation filters (:mod:`.navigation`: drift in body axes, fed back into the
 compensation) and seed 000's (:mod:`.moving`: drift resolved in the computed frame, kept
@@ -32,8 +35,9 @@ in the state, so the row is that state's vertical component) take it; seed 004's
 Not from a seed: the seeds' moving-base filters take GNSS position and velocity alone.
 Zero-angular-rate updates are common practice in pedestrian and land INS (e.g. Groves,
 *Principles of GNSS, Inertial and Multisensor Integrated Navigation*, 2nd ed., sec.
-15.3.3); the horizontal rows are left out here because their Earth-rate term carries
-the heading, which may still be far outside the linear model when the base rests.
+15.3.3); the horizontal rows only test for rest and are not measured, because their
+Earth-rate term carries the heading, which may still be far outside the linear model when
+the base rests.
 """
 import math
 
