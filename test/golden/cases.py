@@ -65,8 +65,11 @@ FOG = {'gyro_bias_dph': 200.0, 'gyro_arw_dpsh': 1.0, 'accel_bias_ug': 2000.0,
 #: UKF's heading sigma stayed above the aligned bound in the bag's 120 s until the coarse
 #: window ended 5 s after the car starts to drive (issue 46, ``coarse_motion_s``). Since the
 #: aided stage runs over the window (``coarse_reprocess_aided``, session 47) both are
-#: aligned at the window's end and leave it as the heading sigma grows on the straight leg
-MEMS_CAR_PHASES_ALIGNED = ('coarse', 'aligned', 'fine')
+#: aligned at the window's end and left it as the heading sigma grew on the straight leg
+#: (3.8 deg at most). Since the vertical drift is measured in the 30-s rest
+#: (``zero_rate_at_rest``, session 50) that sigma stays under 1.8 deg and both stay aligned
+#: (end: UKF 0.29 deg off under 1.65, MVBAKF 0.42 under 1.64, simulator truth)
+MEMS_CAR_PHASES_ALIGNED = ('coarse', 'aligned')
 #: short stages so that a 100-160 s still run reaches ``aligned``; a tactical gyro finds
 #: north to about 5 deg at rest, so the heading bound for ``aligned`` is set to 10 deg
 QUICK_STAGES = {'coarse_duration': 20.0, 'stage_min_duration': 10.0,
