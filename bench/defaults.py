@@ -32,7 +32,7 @@ sys.path.insert(0, str(ROOT))      # this checkout's package, not an installed c
 
 from sins_align_ros.eval.markdown import machine_summary, write_markdown  # noqa: E402
 from sins_align_ros.eval.recordings import FOG_PARAMS, read_fog  # noqa: E402
-from sins_align_ros.align.params import load_yaml  # noqa: E402
+from sins_align_ros.align.param_text import load_yaml  # noqa: E402
 from sins_align_ros.eval.run import run_pipeline  # noqa: E402
 from sins_align_ros.eval.scenarios import named, simulate  # noqa: E402
 from sins_align_ros.nav.frames import attitude_error, euler_to_dcm, quat_to_dcm  # noqa: E402

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Every preset in config/ against the node's defaults, on scenarios of its own kind (issue 44).
 
-Each ``config/alignment_*.yaml`` is read with ``align.params.load_yaml`` (as the node reads
+Each ``config/alignment_*.yaml`` is read with ``align.param_text.load_yaml`` (as the node reads
 its ``--params-file``) and run through the whole pipeline on the scenarios of its kind
 (:data:`SCENARIOS_OF`), N seeded runs each, and so are the node's defaults (no parameter
 at all) on the same data: each arm gets exactly its file, as the node would. A
@@ -48,7 +48,8 @@ sys.path.insert(0, str(ROOT))      # this checkout's package, not an installed c
 sys.path.insert(0, str(ROOT / 'bench'))
 
 from defaults import FOG_FIRST_TURN_S, car_stats  # noqa: E402
-from sins_align_ros.align.params import load_yaml, split_node_params  # noqa: E402
+from sins_align_ros.align.param_text import load_yaml  # noqa: E402
+from sins_align_ros.align.params import split_node_params  # noqa: E402
 from sins_align_ros.eval.cache import simulate_cached  # noqa: E402
 from sins_align_ros.eval.integrity import (cell_stats, inside_at_end,  # noqa: E402
                                            published_sigma, run_integrity, sample_rows)

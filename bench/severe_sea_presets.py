@@ -39,7 +39,7 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))      # this checkout's package, not an installed copy
 
-from sins_align_ros.align.params import parse_value  # noqa: E402
+from sins_align_ros.align.param_text import parse_value  # noqa: E402
 from sins_align_ros.eval.evidence import limits_of  # noqa: E402
 from sins_align_ros.eval.integrity import (MAX_SHARPNESS, cell_stats,  # noqa: E402
                                            published_sigma, run_integrity, sample_rows,

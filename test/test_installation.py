@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 from sins_align_ros.align import params as prm
+from sins_align_ros.align.param_text import parse_value
 from sins_align_ros.align.inputs.gnss_fix import GnssFix
 from sins_align_ros.align.inputs.installation import Installation
 from sins_align_ros.eval.run import run_pipeline, run_scenario
@@ -16,11 +17,11 @@ from sins_align_ros.units import ARCMIN, DEG
 
 
 def test_array_parameters_read_from_yaml_text_and_are_checked():
-    assert prm.parse_value('gnss_lever_arm_m', '[-12.0, 3, 18]') == (-12.0, 3.0, 18.0)
+    assert parse_value('gnss_lever_arm_m', '[-12.0, 3, 18]') == (-12.0, 3.0, 18.0)
     with pytest.raises(ValueError, match='array of 3 numbers'):
-        prm.parse_value('gnss_lever_arm_m', '[1, 2]')
+        parse_value('gnss_lever_arm_m', '[1, 2]')
     with pytest.raises(ValueError, match='array of 3 numbers'):
-        prm.parse_value('imu_mounting_rpy_deg', 'abc')
+        parse_value('imu_mounting_rpy_deg', 'abc')
     assert prm.validate({'imu_mounting_rpy_deg': [90, 0, -90]}) == {
         'imu_mounting_rpy_deg': (90.0, 0.0, -90.0)}
     with pytest.raises(ValueError, match='outside'):

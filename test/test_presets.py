@@ -12,7 +12,8 @@ from pathlib import Path
 import pytest
 
 from conftest import load_bench
-from sins_align_ros.align.params import load_yaml, split_node_params
+from sins_align_ros.align.param_text import load_yaml
+from sins_align_ros.align.params import split_node_params
 from sins_align_ros.sim.presets import SCENARIOS
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -8,6 +8,7 @@ import pytest
 
 from conftest import ROOT, shared_data
 from sins_align_ros.align import params as prm
+from sins_align_ros.align.param_text import parse_value
 from sins_align_ros.eval.limits import scenario_limits
 from sins_align_ros.cli.replay import main as replay
 from sins_align_ros.io.bag import write_scenario_bag
@@ -313,12 +314,12 @@ def test_every_alignment_preset_loads_in_the_replay_tool(usv_bag, tmp_path, caps
 
 
 def test_set_reads_values_as_yaml():
-    assert prm.parse_value('coarse_duration', '30') == 30.0
-    assert prm.parse_value('preprocess', 'yes') is True
-    assert prm.parse_value('preprocess', '0') is False
-    assert prm.parse_value('fine_filter', 'asckf') == 'asckf'
+    assert parse_value('coarse_duration', '30') == 30.0
+    assert parse_value('preprocess', 'yes') is True
+    assert parse_value('preprocess', '0') is False
+    assert parse_value('fine_filter', 'asckf') == 'asckf'
     with pytest.raises(ValueError, match='expects a float'):
-        prm.parse_value('coarse_duration', '[1, 2]')
+        parse_value('coarse_duration', '[1, 2]')
 
 
 def test_bulk_imu_decoder_equals_the_general_deserialiser():

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..align import params as prm
+from ..align import param_text, params as prm
 from ..io import imu_noise_file
 from ..io.bag import read_bag  # noqa: F401  (bench/whole_replay.py times it from here)
 from ..io.results import write_csv  # noqa: F401  (and this)
@@ -90,12 +90,12 @@ def load_parameters(params_file, sets, log=lambda m: None, node_values=None):
     """
     values = {}
     if params_file:
-        values.update(prm.load_yaml(params_file))
+        values.update(param_text.load_yaml(params_file))
     for item in sets:
         if '=' not in item:
             raise ValueError(f'--set expects name=value, got {item!r}')
         k, v = item.split('=', 1)
-        values[k.strip()] = prm.parse_value(k.strip(), v.strip())
+        values[k.strip()] = param_text.parse_value(k.strip(), v.strip())
     values, node_only = prm.split_node_params(values)
     if node_values is not None:
         node_values.update(node_only)

@@ -19,7 +19,8 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
                                 ParameterType, SetParametersResult)
 from rclpy.parameter import Parameter
 
-from ..align.params import Param, closest, markdown_table  # noqa: F401  (re-exported)
+from ..align.params import Param, closest  # noqa: F401  (re-exported)
+from ..align.param_text import markdown_table  # noqa: F401  (re-exported)
 
 #: override names that rclpy or rcl declare themselves, or that configure rclpy (not ours)
 _FOREIGN = ('qos_overrides.',)
