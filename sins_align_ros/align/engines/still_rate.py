@@ -70,6 +70,9 @@ class StillRate:
     n_still_rate = n_still_rate_refused = 0
     #: epochs in a row the body has looked still
     _still_run = 0
+    #: the interval's rate sums (:meth:`_still_rate_start`); None before the first sample
+    _sr_sum = None
+    _sr_n, _sr_T = 0, 0.0
 
     def _still_rate_start(self):
         """Start a new interval of rate sums (at every GNSS epoch)."""
@@ -81,7 +84,7 @@ class StillRate:
 
     def _count_still_rate(self, dtheta, dt):
         """Add compensated increments ``dtheta`` ((3,) or (N, 3), rad) over ``dt`` s."""
-        if not hasattr(self, '_sr_sum'):
+        if self._sr_sum is None:
             self._still_rate_start()
         d = np.asarray(dtheta, dtype=float)
         if d.ndim == 1:                 # one sample (the live node's path)
@@ -106,9 +109,6 @@ class StillRate:
         probability) and its horizontal rate too (:meth:`_turning`). Returns True (used),
         False (refused: turning) or None (not at rest, or the first still epoch).
         """
-        if not hasattr(self, '_sr_sum'):
-            self._still_rate_start()
-            return None
         T, n = self._sr_T, self._sr_n
         if not at_rest or T <= 0.0 or n < 2:
             self._still_rate_start()
