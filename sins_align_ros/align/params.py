@@ -226,6 +226,10 @@ ALIGNMENT_PARAMS = (
           'the filter as a heading fix (the vehicle moves along its forward axis); not on legs '
           'with GNSS velocity above track_min_speed_mps (the track heading\'s); off for a '
           'vehicle that crabs or moves sideways (docs/checks.md)'),
+    Param('turn_scale', True, 'GNSS-aided filters without GNSS velocity: measure the up '
+          'gyro\'s scale factor from each turn between two straight legs (the gyro\'s '
+          'rotation against the change of GNSS course), compensate it and model its measured '
+          'sigma instead of the told one (docs/checks.md)'),
     Param('course_heading_sideslip_deg', 5.0, 'course heading aid: the sideslip (crab) '
           '1-sigma of a straight leg added to the course\'s own, deg: a car 1, a skid-steer '
           'robot a few; legs whose courses disagree beyond it turn the aid off', 0.0, 90.0),

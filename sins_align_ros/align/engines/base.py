@@ -216,6 +216,19 @@ class AidedEngine(Engine, Protocol):
     def set_force_error(self, scale: float, misalignment: float) -> None:
         """Model accelerometer scale factors and misalignment of these 1-sigma (-)."""
 
+    def take_turn(self) -> Optional[tuple]:
+        """Return the rotation about up since the last call (:mod:`..stages.turn_scale`), or None.
+
+        ``(A, eps_up, var_eps, prior_var)``: rad, rad/s, rad^2/s^2, -; None when the engine
+        does not take the up scale factor measured from turns (now).
+        """
+
+    def set_turn_scale(self, scale: float, sigma: Optional[float]) -> bool:
+        """Compensate the up gyro's scale factor measured from turns, 1-sigma ``sigma``.
+
+        ``sigma`` None: the told model back. False when not taken.
+        """
+
     def receiver_velocity_var(self) -> Optional[float]:
         """Return the GNSS velocity noise variance ((m/s)^2) the filter takes, jitter apart.
 

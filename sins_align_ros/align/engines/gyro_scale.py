@@ -130,6 +130,7 @@ class GyroScaleStates:
         """
         self.i_sf = self._append_states(np.full(3, var), np.zeros(3))
         self.sf = np.zeros(3)
+        self._turn_scale_sigma = None     # the states carry it now (:meth:`set_turn_scale`)
 
     def _interval_rate(self, T):
         """Mean body rate (3,) over the interval of ``T`` s (rad/s)."""
@@ -140,10 +141,46 @@ class GyroScaleStates:
         F[0:3, self.i_sf] = -C * w_b
 
     def _compensate_scale(self, dtheta):
-        """Divide increments ``dtheta`` ((3,) or (N, 3)) by ``1 + s`` of the estimate."""
-        if self.i_sf is None:
+        """Divide increments ``dtheta`` ((3,) or (N, 3)) by ``1 + s`` of the estimate.
+
+        The estimate of the states, or the up scale factor measured from turns
+        (:meth:`set_turn_scale`).
+        """
+        if self.i_sf is None and not self.sf[2]:
             return dtheta
         return dtheta / (1.0 + self.sf)
+
+    def take_turn(self):
+        """Return the rotation since the last call for :mod:`..stages.turn_scale`, or None.
+
+        Returns ``(A, eps_up, var_eps, prior_var)``: the increments' rotation about the
+        local vertical (rad, compensated by :attr:`sf`), the vertical drift they still
+        carry (rad/s: the drift states' estimate where the engine keeps it in the filter)
+        and its variance (rad^2/s^2), and the scale factor's told 1-sigma squared. None
+        (the rotation dropped) while the states carry the scale factors, while the GNSS
+        velocity is measured (the states' domain, once the heading is known) and when no
+        scale factor is modelled.
+        """
+        A, self._turn = self._turn, 0.0
+        if self.i_sf is not None or self.velocity_measured or not self.sf_wanted > 0.0:
+            return None
+        h = np.zeros(len(self.kf.x))
+        self._drift_row(h, self.mech.C_b_n)
+        return (A, float(h @ self.kf.x), float(h @ self.kf.P @ h),
+                (SCALE_STATE_FACTOR * self.sf_wanted) ** 2)
+
+    def set_turn_scale(self, scale, sigma):
+        """Compensate the z gyro's scale factor ``scale`` measured from turns, 1-sigma ``sigma``.
+
+        The noise (:mod:`.rotation_error`) then takes ``sigma`` about the body's z axis;
+        ``sigma`` None gives the told model back (no compensation). Returns False (nothing
+        done) once the scale factors are states.
+        """
+        if self.i_sf is not None:
+            return False
+        self.sf = np.array([0.0, 0.0, float(scale) if sigma is not None else 0.0])
+        self._turn_scale_sigma = None if sigma is None else float(sigma)
+        return True
 
     def _feed_back_scale(self, x):
         """Move the scale-factor estimate of state ``x`` into the compensation."""

@@ -169,6 +169,11 @@ class RotationError:
     _rot = None
     #: the told (self-checked) misalignment 1-sigma, rad/rad (:meth:`tilt_floor`)
     _rot_misalignment = 0.0
+    #: rotation about the local vertical since :meth:`take_turn`, rad
+    _turn = 0.0
+    #: the z gyro's scale-factor 1-sigma measured from turns (:mod:`..stages.turn_scale`),
+    #: which the noise takes about the body's z axis instead of the told one; None: told
+    _turn_scale_sigma = None
 
     def set_rotation_error(self, scale, misalignment):
         """Model gyro scale factors ``scale`` and misalignment ``misalignment`` (1-sigma, -).
@@ -209,10 +214,28 @@ class RotationError:
         return np.array([v, v, 0.0])
 
     def _add_rotation(self, dtheta):
-        """Count mechanized increments ``dtheta`` ((3,) or (N, 3), rad) into the interval."""
+        """Count mechanized increments ``dtheta`` ((3,) or (N, 3), rad) into the interval.
+
+        Also sums their rotation about the local vertical (``C_b_n[2] . dtheta``: the
+        attitude's vertical row depends on the tilt only) for :meth:`take_turn`.
+        """
+        d = np.asarray(dtheta, dtype=float)
+        s = d if d.ndim == 1 else np.add.reduce(d, axis=0)
+        self._turn += float(self.mech.C_b_n[2] @ s)
         if self._rot is not None:
-            d = np.asarray(dtheta, dtype=float)
-            self._rot += d if d.ndim == 1 else np.add.reduce(d, axis=0)
+            self._rot += s
+
+    def take_turn(self):
+        """Return None: the scale factor measured from turns is not taken here.
+
+        The rotation is dropped; engines with scale-factor compensation
+        (:mod:`.gyro_scale`) return it.
+        """
+        self._turn = 0.0
+
+    def set_turn_scale(self, scale, sigma):
+        """Return False: this engine does not take a measured up scale factor."""
+        return False
 
     def _rotation_noise(self, T):
         """Process noise (n, n) of the rotation since the last call, over ``T`` s, or None.
@@ -224,8 +247,11 @@ class RotationError:
         rot, self._rot = self._rot, np.zeros(3)
         if self._rot_sigma is None:
             return None
+        scale, mis = self._rot_sigma
+        if self._turn_scale_sigma is not None:
+            scale = np.array([scale, scale, COHERENCE_FACTOR * self._turn_scale_sigma])
         self._rot_A, inc = coherent_increment(self._rot_A, rot, T, ROTATION_MEMORY_S,
-                                              *self._rot_sigma, yaw_leak_bounded=True)
+                                              scale, mis, yaw_leak_bounded=True)
         E = state_noise(len(self.kf.x), self.i_phi, self.mech.C_b_n, inc)
         if HEADING_COHERENCE_FACTOR != COHERENCE_FACTOR:
             k = np.arange(len(E))[self.i_phi][2]

@@ -9,7 +9,7 @@ slow-error monitor (:mod:`.slow_monitor`) takes each accepted epoch and the self
 motion (:mod:`.motion_check`) judges the IMU samples up to it, each opening the engine's
 model where the data disagree. A filter failure (:class:`~.gnss_gate.FilterDiverged`)
 comes back as its reason. Uses the stage's ``engine``, ``t0``, ``install``, ``headings``,
-``consistency``, ``sideslip``, ``slow``, ``motion_check``, ``heading_known``,
+``consistency``, ``sideslip``, ``slow``, ``motion_check``, ``turn_scale``, ``heading_known``,
 ``attitude_cov()``, ``rate_var()``, ``note_update()`` and ``_epoch_done()``; of the engine,
 only what its contract declares (:class:`~..engines.base.Engine`; the GNSS epochs come to
 GNSS-aided engines only, :class:`~..engines.base.AidedEngine`): the last epoch's record and the
@@ -27,13 +27,13 @@ class EpochUpdates:
 
     def monitor_findings(self):
         """Return the new findings of the slow-error monitor and the motion check (WARNs)."""
-        return [w for mon in (self.slow, self.motion_check, self.course) if mon is not None
-                for w in mon.take_findings()]
+        return [w for mon in (self.slow, self.motion_check, self.course, self.turn_scale)
+                if mon is not None for w in mon.take_findings()]
 
     def monitor_status(self):
         """Diagnostics figures of the slow-error monitor and the motion check."""
         s = {}
-        for mon in (self.slow, self.motion_check, self.course):
+        for mon in (self.slow, self.motion_check, self.course, self.turn_scale):
             if mon is not None:
                 s.update(mon.status())
         return s
@@ -200,6 +200,8 @@ class EpochUpdates:
                 if self.consistency.relax:
                     eng.relax()
                 self._watch_slow(t_now, fix)
+                if not (self.turn_scale is None or self.mounting_doubt or eng.rejected):
+                    self.turn_scale.add(t_now, eng, fix)
                 reason = self._aid_course(t_now, fix)
                 if reason is not None:
                     return reason

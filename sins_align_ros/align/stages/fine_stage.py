@@ -65,7 +65,7 @@ from .consistency import ConsistencyMonitor
 from .convergence import ConvergenceMonitor
 from .fine_epochs import EpochUpdates
 from .fine_stepping import ALIGNED, FINE, AidedStepping, StillStepping
-from . import course_heading, motion_check, slow_monitor
+from . import course_heading, motion_check, slow_monitor, turn_scale
 from ..output import ANGLE_UNKNOWN_VAR, HEADING_UNKNOWN_VAR
 from .sideslip import SideslipCheck
 from .sigma_history import SigmaHistory
@@ -147,6 +147,9 @@ class FineStage(EpochUpdates):
         #: the straight legs' GNSS course as a heading fix while the heading is unknown
         #: (:mod:`.course_heading`), aided engines only, or None
         self.course = course_heading.for_stage(engine, cfg)
+        #: the up gyro's scale factor from the turns between straight legs
+        #: (:mod:`.turn_scale`), aided engines only, or None
+        self.turn_scale = turn_scale.for_stage(engine, cfg)
 
     @property
     def moving(self):
