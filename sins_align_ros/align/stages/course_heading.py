@@ -74,6 +74,7 @@ from ...nav import earth
 from ..engines.base import Engine
 from ..inputs.gnss_fix import epoch_var, uses_reported_covariance
 from ..inputs.heading import HeadingFix, wrap
+from .finding import OnceFinding
 from .slow_monitor import (MAX_COURSE_SIGMA, MAX_LEG_S, MAX_YAW_RATE, MIN_EPOCHS, MIN_LEG_S,
                            MIN_SPEED, RATE_SPAN, STRAIGHT, Leg, YawRate)
 
@@ -86,7 +87,7 @@ BETTER = 2.0
 MAX_DISAGREE = 2
 
 
-class CourseHeading:
+class CourseHeading(OnceFinding):
     """Straight legs' GNSS courses as heading fixes while the heading is unknown (module doc).
 
     ``sideslip_deg``: the sideslip 1-sigma of a straight leg; ``sigmas``: a leg disagrees
@@ -116,8 +117,6 @@ class CourseHeading:
         self._worst = 0.0             # largest D^2 (rad^2) of the disagreeing run
         #: (t, D, sigma, result) of the last judged leg (s, rad, rad, str)
         self.last = None
-        self.finding = ''
-        self._reported = ''
 
     def add(self, t, C_b_n, v_n_filter, fix):
         """Take an accepted GNSS epoch; return the judged leg ``(D, var)`` (rad, rad^2) or None.
@@ -217,13 +216,6 @@ class CourseHeading:
                         'course heading aid off, heading covariance widened '
                         '(course_heading_sideslip_deg)')
         return self._worst
-
-    def take_findings(self):
-        """Return the finding not reported yet (a WARN; and forget it)."""
-        if self.finding and self.finding != self._reported:
-            self._reported = self.finding
-            return [self.finding]
-        return []
 
     def status(self):
         """Figures for diagnostics."""

@@ -54,6 +54,7 @@ from ..engines.base import AidedEngine, Engine
 from ..inputs.gnss_fix import epoch_var, uses_reported_covariance
 from ..inputs.heading import wrap
 from .course_heading import fitted_course
+from .finding import OnceFinding
 from .slow_monitor import (MAX_LEG_S, MAX_YAW_RATE, MIN_EPOCHS, MIN_LEG_S, MIN_SPEED,
                            RATE_SPAN, STRAIGHT, Leg, YawRate)
 
@@ -71,7 +72,7 @@ GATE_PROBABILITY = 0.9999
 MAX_REJECTED = 3
 
 
-class TurnScale:
+class TurnScale(OnceFinding):
     """The up gyro's scale factor from turns between straight legs (module docstring).
 
     ``sideslip_deg``: a straight leg's sideslip 1-sigma; ``pos_sigma``: the configured
@@ -102,8 +103,6 @@ class TurnScale:
         self.estimate = None          # (s, sigma) given to the engine
         self.off = False
         self.n_rejected = self._run = 0
-        self.finding = ''
-        self._reported = ''
 
     def add(self, t, engine: AidedEngine, fix):
         """Take an accepted GNSS epoch at ``t``; give the engine a new estimate when due."""
@@ -212,13 +211,6 @@ class TurnScale:
                         'courses\' noise allow (the vehicle reverses, skids or crabs): the '
                         'up gyro\'s scale factor is no longer measured from turns; the told '
                         'one is modelled')
-
-    def take_findings(self):
-        """Return the finding not reported yet (a WARN; and forget it)."""
-        if self.finding and self.finding != self._reported:
-            self._reported = self.finding
-            return [self.finding]
-        return []
 
     def status(self):
         """Figures for diagnostics."""
