@@ -217,10 +217,11 @@ class AidedEngine(Engine, Protocol):
         """Model accelerometer scale factors and misalignment of these 1-sigma (-)."""
 
     def take_turn(self) -> Optional[tuple]:
-        """Return the rotation about up since the last call (:mod:`..stages.turn_scale`), or None.
+        """Return the rotation about up since the last call (:mod:`..stages.turn_scale`).
 
-        ``(A, eps_up, var_eps, prior_var)``: rad, rad/s, rad^2/s^2, -; None when the engine
-        does not take the up scale factor measured from turns (now).
+        ``(A, eps_applied, eps, var_eps, q_eps, prior_var)``: rad, rad/s, rad/s, rad^2/s^2,
+        rad^2/s^3, -; None when the engine does not take the up scale factor measured from
+        turns (now).
         """
 
     def set_turn_scale(self, scale: float, sigma: Optional[float]) -> bool:

@@ -153,20 +153,25 @@ class GyroScaleStates:
     def take_turn(self):
         """Return the rotation since the last call for :mod:`..stages.turn_scale`, or None.
 
-        Returns ``(A, eps_up, var_eps, prior_var)``: the increments' rotation about the
-        local vertical (rad, compensated by :attr:`sf`), the vertical drift they still
-        carry (rad/s: the drift states' estimate where the engine keeps it in the filter)
-        and its variance (rad^2/s^2), and the scale factor's told 1-sigma squared. None
-        (the rotation dropped) while the states carry the scale factors, while the GNSS
-        velocity is measured (the states' domain, once the heading is known) and when no
-        scale factor is modelled.
+        Returns ``(A, eps_applied, eps, var_eps, q_eps, prior_var)``: the increments'
+        rotation about the local vertical (rad, as compensated: the drift where the engine
+        takes it off, then :attr:`sf`), the vertical drift they were compensated by (rad/s),
+        the engine's whole estimate of the vertical drift (rad/s: with what its filter still
+        carries), that estimate's variance (rad^2/s^2) and its random walk's density
+        (rad^2/s^3), and the scale factor's told 1-sigma squared. None (the rotation
+        dropped) while the states carry the scale factors, while the GNSS velocity is
+        measured (the states' domain, once the heading is known) and when no scale factor
+        is modelled.
         """
         A, self._turn = self._turn, 0.0
         if self.i_sf is not None or self.velocity_measured or not self.sf_wanted > 0.0:
             return None
+        C = self.mech.C_b_n
         h = np.zeros(len(self.kf.x))
-        self._drift_row(h, self.mech.C_b_n)
-        return (A, float(h @ self.kf.x), float(h @ self.kf.P @ h),
+        self._drift_row(h, C)
+        applied = float(C[2] @ self._rate_compensation())
+        return (A, applied, applied + float(h @ self.kf.x), float(h @ self.kf.P @ h),
+                float((h * h) @ np.asarray(self.Qc, dtype=float)),
                 (SCALE_STATE_FACTOR * self.sf_wanted) ** 2)
 
     def set_turn_scale(self, scale, sigma):
