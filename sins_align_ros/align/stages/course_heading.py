@@ -147,11 +147,7 @@ class CourseHeading(OnceFinding):
             self.leg = Leg(t, yaw)
             self._speeds = []
         leg = self.leg
-        leg.t.append(t)
-        leg.yaw.append(yaw)
-        leg.var_h.append(0.0)
-        leg.pos.append((fix.lat, fix.lon, fix.h))
-        leg.pos_var.append(epoch_var(self.pos_var, fix.pos_var, self.use_reported))
+        leg.add(t, yaw, 0.0, fix, epoch_var(self.pos_var, fix.pos_var, self.use_reported))
         if fix.v_n is not None:
             v = np.asarray(fix.v_n, dtype=float)
             sp = math.hypot(v[0], v[1])

@@ -158,6 +158,14 @@ class Leg:
     def duration(self):
         return self.t[-1] - self.t0 if self.t else 0.0
 
+    def add(self, t, yaw, var_h, fix, pos_var):
+        """Append an epoch: stamp, yaw, heading variance, ``fix``'s position and its variance."""
+        self.t.append(t)
+        self.yaw.append(yaw)
+        self.var_h.append(var_h)
+        self.pos.append((fix.lat, fix.lon, fix.h))
+        self.pos_var.append(pos_var)
+
     def trim(self, t_end):
         """Drop the epochs stamped after ``t_end`` (s): a turn's first ones (module docstring)."""
         n = int(np.searchsorted(self.t, t_end, side='right'))
@@ -271,11 +279,7 @@ class SlowErrorMonitor:
         if self.leg is None:
             self.leg = Leg(t, yaw)
         leg = self.leg
-        leg.t.append(t)
-        leg.yaw.append(yaw)
-        leg.var_h.append(var_h)
-        leg.pos.append((fix.lat, fix.lon, fix.h))
-        leg.pos_var.append(epoch_var(self.pos_var, fix.pos_var, self.use_reported))
+        leg.add(t, yaw, var_h, fix, epoch_var(self.pos_var, fix.pos_var, self.use_reported))
         if fix.v_n is not None:
             v = np.asarray(fix.v_n, dtype=float)
             sp = math.hypot(v[0], v[1])

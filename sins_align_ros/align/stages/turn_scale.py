@@ -126,9 +126,7 @@ class TurnScale(OnceFinding):
         m = engine.mech
         if self.t is not None:
             T = t - self.t
-            R_M, R_N = earth.radii(m.lat)
-            w_up = (earth.OMEGA_IE * math.sin(m.lat)
-                    + m.v_n[0] * math.tan(m.lat) / (R_N + m.h))
+            w_up = float(earth.w_ie_n(m.lat)[2] + earth.w_en_n(m.lat, m.h, m.v_n)[2])
             # the gyro's own rotation (compensations undone), less the chain's drift
             self.psi += (A * (1.0 + self.scale) + (eps_applied - self.eps_ref) * T
                          - w_up * T)
@@ -151,12 +149,8 @@ class TurnScale(OnceFinding):
     def _join(self, t, fix):
         if self.leg is None:
             self.leg = Leg(t, self.psi)
-        leg = self.leg
-        leg.t.append(t)
-        leg.yaw.append(self.psi)
-        leg.var_h.append(0.0)
-        leg.pos.append((fix.lat, fix.lon, fix.h))
-        leg.pos_var.append(epoch_var(self.pos_var, fix.pos_var, self.use_reported))
+        self.leg.add(t, self.psi, 0.0, fix,
+                     epoch_var(self.pos_var, fix.pos_var, self.use_reported))
 
     def _markov_var(self, leg):
         """Return the Gauss-Markov position variance of a positions-only leg (m^2).
