@@ -289,10 +289,37 @@ def test_the_onset_of_motion_after_rest_ends_the_coarse_window_coarse_motion_s_l
     on = _onset([0.0] * int(rest * rate) + [3.0] * 20, cfg)
     assert on.t == pytest.approx(rest)
     assert on.window_end(cfg, 0.0) == pytest.approx(rest + 5.0)
-    # too little rest before it for the self-check: the whole window
-    assert on.window_end(cfg, rest - cfg['coarse_min_duration'] + 0.5) is None
+    # a window begun less than coarse_min_duration before the motion lasts that long
+    # (the self-check reads as much as on a still base), not the whole coarse_duration
+    t_first = rest - 2.0
+    assert on.window_end(cfg, t_first) == pytest.approx(t_first + cfg['coarse_min_duration'])
+    # a rest shorter than coarse_min_duration by less than coarse_motion_s: the onset's end
+    assert on.window_end(cfg, rest - cfg['coarse_min_duration'] + 0.5) == pytest.approx(
+        rest + 5.0)
+    # one that begins with the motion (a base moving from the start) alike
+    assert on.window_end(cfg, rest) == pytest.approx(rest + cfg['coarse_min_duration'])
     # off
     assert on.window_end(_cfg(coarse_motion_s=0.0), 0.0) is None
+
+
+@pytest.mark.parametrize('name, fine_filter, window_s', [
+    ('ship_underway', 'asckf', 20.0),       # marine grade, under way from the start
+    ('seed001_flight', 'kf', 20.0),         # tactical grade, flying from the start
+    ('car_consumer', 'auto', 60.0)])        # raw MEMS AHRS triads, driving from the start
+def test_a_base_moving_from_the_start_ends_its_window_after_20_s_unless_mems(
+        name, fine_filter, window_s):
+    """Issue 46 (session 52): GNSS shows the base moving from its first fixes. A gyro that
+    finds north ends the window after coarse_min_duration (20 s) and the aided filter,
+    run over it, publishes 40 s sooner; a MEMS one keeps coarse_duration (60 s), where its
+    self-check reads a minute of vibration and turns (CoarseWindow.refuse_short_end: the
+    skid-steer robot's early rows were its silent-wrong ones)."""
+    from sins_align_ros.eval.run import run_scenario
+    run = run_scenario(name, 1000, fine_filter, duration=window_s + 5.0, cached=True)
+    info = run.pipeline.coarse_info
+    assert info['duration_s'] == pytest.approx(window_s, abs=0.05)
+    assert info['reprocessed_s'] == pytest.approx(window_s, abs=0.05)
+    first = np.flatnonzero(run.out.phase != 'coarse')[0]
+    assert run.out.t[first] - run.data.imu.t[0] == pytest.approx(window_s, abs=0.05)
 
 
 def test_a_stop_before_the_motion_lasted_forgets_it_one_after_keeps_it():

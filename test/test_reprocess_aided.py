@@ -25,6 +25,9 @@ from sins_align_ros.sim.scenario import ScenarioStream
 SHIP, SEED, SPAN = 'ship_underway', 1000, 75.0
 #: the reprocessing of GNSS-aided stages, on by default (reprocess module docstring), and off
 ON, OFF = {'coarse_reprocess_aided': True}, {'coarse_reprocess_aided': False}
+#: a whole 60-s window (the ship moves from the start: since session 52 its window ends after
+#: coarse_min_duration, 20 s); the fixture and the catch-up test run over the longer one
+LONG = {'coarse_min_duration': 60.0}
 
 
 def test_requeue_puts_the_windows_fixes_ahead_of_the_waiting_ones():
@@ -59,10 +62,10 @@ def ship_runs():
 
     reprocess.aided_start = spy
     try:
-        on = run_scenario(SHIP, SEED, 'asckf', duration=SPAN, cached=True, **ON)
+        on = run_scenario(SHIP, SEED, 'asckf', duration=SPAN, cached=True, **ON, **LONG)
     finally:
         reprocess.aided_start = original
-    off = run_scenario(SHIP, SEED, 'asckf', duration=SPAN, cached=True, **OFF)
+    off = run_scenario(SHIP, SEED, 'asckf', duration=SPAN, cached=True, **OFF, **LONG)
     return on, off, seen
 
 
@@ -138,7 +141,7 @@ def test_fixes_that_come_while_the_stage_catches_up_are_queued_behind_the_window
     queued sample's), and every fix from the window's start on is used once."""
     sc = named(SHIP, 66.0)
     b = ScenarioStream(sc, seed=2, imu_rate_hz=1000.0).next_block(66000)
-    p = AlignmentPipeline({**alignment_params(sc, 'asckf'), **ON})
+    p = AlignmentPipeline({**alignment_params(sc, 'asckf'), **ON, **LONG})
     p.start_clock(0.0)
     imu, g = b.imu, b.gnss
     gi, catching = 0, 0

@@ -336,7 +336,9 @@ def test_a_gnss_velocity_outlier_at_the_coarse_window_end_is_left_out():
     k = np.searchsorted(data.imu.t, data.gnss.t)
     glitch = np.abs(data.gnss.v_n - data.imu.v_n[np.minimum(k, len(data.imu.t) - 1)])
     assert glitch[np.argmin(np.abs(data.gnss.t - data.imu.t[0] - 60.0))].max() > 0.5
-    run = run_pipeline(alignment_params(sc, 'vbckf'), data)
+    # the window of then: 60 s (a moving base's ends after coarse_min_duration since
+    # session 52)
+    run = run_pipeline({**alignment_params(sc, 'vbckf'), 'coarse_min_duration': 60.0}, data)
     p = run.pipeline
     assert p.coarse_info['gnss_velocity_outliers'] >= 3
     assert any('GNSS velocity message(s) of the coarse window left out' in w

@@ -109,8 +109,9 @@ ALIGNMENT_PARAMS = (
     Param('coarse_min_duration', 20.0, 'shortest coarse window, which the sensor self-check '
           'reads: a still base\'s window ends once it has lasted this long and its attitude, '
           'with the noise the samples show, is good enough for the fine filter '
-          '(docs/coarse.md); a rested base that starts to move needs this much rest for '
-          'coarse_motion_s; at least coarse_duration: the window lasts coarse_duration, s',
+          '(docs/coarse.md); a base GNSS shows moving ends it coarse_motion_s after the '
+          'motion starts, not before this; at least coarse_duration: the window lasts '
+          'coarse_duration, s',
           1.0, 3600.0),
     Param('coarse_reprocess', True, 'a still-base fine filter starts at the coarse window\'s '
           'first sample and runs over its stored samples before the live ones, with a prior '
@@ -121,10 +122,11 @@ ALIGNMENT_PARAMS = (
           'external headings: aligned sooner (a navigation-grade ship under way 70 s instead '
           'of 136 s, a MEMS car 5 s after it starts to drive instead of 17 s); false: it '
           'starts at the window\'s end (docs/coarse.md)'),
-    Param('coarse_motion_s', 5.0, 'a coarse window that held coarse_min_duration of rest ends '
-          'this long '
-          'after GNSS shows the base start moving (the moving-base coarse alignment takes '
-          'the heading from the motion); 0 = always coarse_duration, s', 0.0, 3600.0),
+    Param('coarse_motion_s', 5.0, 'the coarse window ends this long after GNSS shows the '
+          'base start moving, but not before coarse_min_duration (a base moving from the '
+          'start: after coarse_min_duration, unless its gyro cannot find north: a MEMS IMU '
+          'keeps coarse_duration); the moving-base coarse alignment takes the heading from '
+          'the motion; 0 = always coarse_duration, s', 0.0, 3600.0),
     Param('initial_latitude_deg', math.nan, 'latitude used without a GNSS fix, deg; .nan: not '
           'set: at rest the gyros estimate it where they see the Earth rate clearly (a '
           'navigation-grade IMU), else it is unknown, 0 is used and the heading is published '

@@ -294,12 +294,14 @@ class AlignmentPipeline:
                 c.t_first = c.t_last
             if self.fine is None:
                 w, still = self.window, not self.aided and self.onset.t is None
-                w.t_end = self.onset.window_end(self.cfg, c.t_first)
+                end = self.onset.window_end(self.cfg, c.t_first)
+                w.t_end = None if w.short_end_refused else end
                 w.plan(c.t_first, self.cfg, still)
                 # (a restart's window, begun with stored samples, may be complete already)
                 j = i if w.full else w.take(t, dtheta, dv, i, c.t_last)
                 if j > i:
                     c.t_last = t[j - 1]
+                w.refuse_short_end(self.onset.t, c.t_first, self.cfg, self.noise, self.gnss)
                 w.judge(c.t_first, self.cfg, self.noise, self.gnss, still)
                 w.hold_for_drive_test(c.t_first, self.cfg, self.noise, self.gnss)
                 out = unknown(t[i:j], COARSE)

@@ -17,12 +17,19 @@ invisible). Then no filter can align without GNSS, and the pipeline says so.
 A base that rests and then drives (a car at a traffic light, a robot waiting for its
 mission) need not wait out the coarse window once it moves (issue 46): :class:`Onset`
 keeps when GNSS first showed the motion, and the window ends ``coarse_motion_s`` seconds
-after it, provided it held ``coarse_min_duration`` of rest before (the sensor
-self-check's noise and bias checks read the rest). The moving-base coarse alignment then
-takes its heading from those seconds (the GNSS track once faster than
-``track_min_speed_mps``, else the inertial-frame fit of the GNSS velocity change) and the
-GNSS-aided filter finds the rest in the manoeuvres that follow. A base moving from the
-start keeps the whole window: its self-check has no rest to read.
+after it, and not before it has lasted ``coarse_min_duration`` (the sensor self-check
+reads that much, as on a still base). The moving-base coarse alignment then takes its
+heading from those seconds (the GNSS track once faster than ``track_min_speed_mps``, else
+the inertial-frame fit of the GNSS velocity change) and the GNSS-aided filter, run over
+the window from its first sample (``coarse_reprocess_aided``), finds the rest in the
+manoeuvres that follow. A base moving from the start ends its window so after
+``coarse_min_duration`` too, where its gyro finds north (tactical grade or better); a MEMS
+IMU keeps the whole ``coarse_duration``
+(:meth:`~..stages.coarse_window.CoarseWindow.refuse_short_end`, which says why). Until
+session 52 every such window lasted ``coarse_duration``; the filter, run over the window
+from its start, held the same estimate at 60 s either way, only published 40 s later (the
+navigation-grade ship under way, the USV, the tactical flight: first published at 20 s;
+bench/results/time_to_align.md).
 """
 import math
 from dataclasses import dataclass
@@ -213,8 +220,12 @@ class Onset:
             self.t = None
 
     def window_end(self, cfg, t_first):
-        """Return the stamp at which the coarse window begun at ``t_first`` ends early, or None."""
+        """Return the stamp at which the coarse window begun at ``t_first`` ends early, or None.
+
+        ``coarse_motion_s`` after the onset, at the earliest ``coarse_min_duration`` after
+        ``t_first``; None without an onset or with ``coarse_motion_s`` 0.
+        """
         s, need = self.t, cfg['coarse_motion_s']
-        if s is None or not need > 0.0 or s - t_first < cfg['coarse_min_duration']:
+        if s is None or not need > 0.0:
             return None
-        return s + need
+        return max(s + need, t_first + cfg['coarse_min_duration'])

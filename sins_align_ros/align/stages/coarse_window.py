@@ -46,6 +46,8 @@ class CoarseWindow:
         self.t_check = None
         #: the pipeline ended the window (its attitude is good enough)
         self.ended = False
+        #: a short moving window's early end was refused (:meth:`refuse_short_end`)
+        self.short_end_refused = False
         #: stamp of the last sample taken, None before any
         self._t_last = None
 
@@ -119,6 +121,34 @@ class CoarseWindow:
         if sees_earth_rate(lat, noise) and seen.gyro_arw <= HOLD_GYRO_NOISE_DPSH * DPSH:
             return
         self.duration, self.ended, self.t_check = DRIVE_TEST_S, False, math.inf
+
+    def refuse_short_end(self, onset_t, t_first, cfg, noise, gnss):
+        """Keep the whole window of a MEMS IMU moving from its start (issue 46, session 52).
+
+        A window that GNSS shows moving ends ``coarse_motion_s`` after the motion's onset
+        ``onset_t`` and not before ``coarse_min_duration`` (:meth:`~..inputs.motion.Onset.
+        window_end`). Where it held less rest than that before the motion (a base moving
+        from the start) and has now reached that end, the end is kept only for a gyro
+        that can find north (the configured bias, and the noise the samples show at most
+        :data:`HOLD_GYRO_NOISE_DPSH`: the tactical class's edge, as
+        :meth:`hold_for_drive_test`); a MEMS IMU keeps ``coarse_duration``. Measured
+        (bench/results/integrity_ground.md, session 52): ended at 20 s, the skid-steer
+        robot's MEMS triads published rows whose heading its model does not yet cover
+        (asckf, told right, seed 1004: 20 deg off under a 4.5-deg sigma at 55 s; 2
+        silent-wrong runs of 10, against issue 44's 1); a tactical or navigation-grade
+        ship, USV or aircraft publishes 40 s sooner. ``t_first``: where the window began;
+        ``noise`` the configured model; ``gnss`` the
+        :class:`~..inputs.gnss_buffer.GnssBuffer` (the latitude).
+        """
+        if (self.short_end_refused or self.t_end is None or onset_t is None
+                or onset_t - t_first >= cfg['coarse_min_duration'] or not self.full
+                or self.T >= self.duration - 1e-9):
+            return
+        lat = gnss.position(cfg, False)[0][0] if gnss.latitude_known(cfg) else 0.0
+        seen = seen_noise(self.arrays(t_first), noise)
+        if sees_earth_rate(lat, noise) and seen.gyro_arw <= HOLD_GYRO_NOISE_DPSH * DPSH:
+            return
+        self.short_end_refused, self.t_end = True, None
 
     def judge(self, t_first, cfg, noise, gnss, still):
         """End the window at a due check if its attitude is good enough (:func:`good_enough`).
