@@ -286,7 +286,8 @@ def main():
                     f'{sw.max()} ({sw.sum()}) | '
                     f'{sum(r["end_aligned"] for r in rs)} | '
                     + (f'{100 * np.nanmin(ins):.1f}%' if ok.any() else '-') + ' | '
-                    + (f'{100 * np.nanmin(lim):.1f}%' if np.isfinite(lim).any() else '-')
+                    + (f'{100 * np.nanmin(lim):.1f}% ({np.sum(lim == 1.0)}/{len(rs)})'
+                       if np.isfinite(lim).any() else '-')
                     + ' | ' + (f'{100 * np.nanmin(slim):.1f}% ({np.sum(slim == 1.0)}/{len(rs)})'
                                if sways_in_place(sc_of(scen)) else '-')
                     + ' |')
@@ -314,7 +315,8 @@ def main():
         '"in limit": on a still or moored base, the worst run\'s share of `aligned` rows '
         'whose heading error is inside the analytic limit for the data seen so far, '
         '(1.2 x east gyro bias + 3 x ARW / sqrt(t)) / (Earth rate x cos L) on a still '
-        'base; on a base that sways in place the noise term is eval.limits.'
+        'base, and the runs wholly inside it; on a base that sways in place the noise '
+        'term is eval.limits.'
         'sway_heading_noise\'s (its gyros cannot tell the Earth rate from the sway, so the '
         'accelerometers\' route adds: 13\' at 20 s on ship_sway against 2.2\'); "in the still '
         'limit": for such a base, the same share against the still base\'s formula (issue '
