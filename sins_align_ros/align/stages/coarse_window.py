@@ -116,11 +116,21 @@ class CoarseWindow:
         if not (self.full and not gnss.seen and cfg['fine_filter'] == 'auto'
                 and self.t_end is None and self.T < DRIVE_TEST_S - 1e-9):
             return
-        lat = gnss.position(cfg, False)[0][0] if gnss.latitude_known(cfg) else 0.0
-        seen = seen_noise(self.arrays(t_first), noise)
-        if sees_earth_rate(lat, noise) and seen.gyro_arw <= HOLD_GYRO_NOISE_DPSH * DPSH:
+        if self._finds_north(t_first, cfg, noise, gnss):
             return
         self.duration, self.ended, self.t_check = DRIVE_TEST_S, False, math.inf
+
+    def _finds_north(self, t_first, cfg, noise, gnss):
+        """Tell whether the gyro can find north (tactical grade or better).
+
+        The configured bias sees the Earth rate and the samples' noise is at most
+        :data:`HOLD_GYRO_NOISE_DPSH` (the tactical class's edge).
+        ``t_first``: where the window began; ``noise`` the configured model; ``gnss`` the
+        :class:`~..inputs.gnss_buffer.GnssBuffer` (the latitude, 0 where unknown).
+        """
+        lat = gnss.position(cfg, False)[0][0] if gnss.latitude_known(cfg) else 0.0
+        seen = seen_noise(self.arrays(t_first), noise)
+        return sees_earth_rate(lat, noise) and seen.gyro_arw <= HOLD_GYRO_NOISE_DPSH * DPSH
 
     def refuse_short_end(self, onset_t, t_first, cfg, noise, gnss):
         """Keep the whole window of a MEMS IMU moving from its start (issue 46, session 52).
@@ -144,9 +154,7 @@ class CoarseWindow:
                 or onset_t - t_first >= cfg['coarse_min_duration'] or not self.full
                 or self.T >= self.duration - 1e-9):
             return
-        lat = gnss.position(cfg, False)[0][0] if gnss.latitude_known(cfg) else 0.0
-        seen = seen_noise(self.arrays(t_first), noise)
-        if sees_earth_rate(lat, noise) and seen.gyro_arw <= HOLD_GYRO_NOISE_DPSH * DPSH:
+        if self._finds_north(t_first, cfg, noise, gnss):
             return
         self.short_end_refused, self.t_end = True, None
 
