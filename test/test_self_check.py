@@ -191,24 +191,43 @@ def test_gnss_noise_above_the_model_widens_it(ff, reported, widened):
 
 
 @pytest.mark.parametrize('ff, widened', [('stationary12', True), ('reduced7', False)])
-def test_heave_at_rest_widens_the_vertical_zero_velocity_noise(ff, widened):
+@pytest.mark.parametrize('told', [0.01, 0.0])
+def test_heave_at_rest_widens_the_vertical_zero_velocity_noise(ff, widened, told):
     """A moored ship heaving 0.5 m over 6 s moves at 0.37 m/s RMS vertically: the 12-state
     filter, which measures the vertical velocity as zero, gets that noise on its vertical
-    row only; the horizontal rows keep theirs (the ship does not move horizontally)."""
+    row only; the horizontal rows keep theirs (the ship does not move horizontally).
+
+    Told 0.01 m/s, the vertical is widened; left to the data (0, the default), both are
+    read: the vertical 1.5 x its RMS, the horizontal at the floor. The horizontal RMS is
+    the accelerometers' random walk alone (5 ug/sqrt(Hz) less a quadratic over 10-s
+    pieces: 0.032 mm/s expected) within 3x: against the window's mean vertical instead of
+    each piece's own, the Earth's turn leaked 0.4 mm/s of the heave into it.
+    """
+    from sins_align_ros.align.stages.self_check import READ_MARGIN, ZERO_VELOCITY_FLOOR
     from sins_align_ros.eval.scenarios import named, simulate
     b = simulate(named('ship_sway', 60.0), 1)
     dts = np.diff(np.r_[0.0, b.imu.t])
     lat = 45.7796 * DEG
     c = check((b.imu.t, b.imu.dtheta, b.imu.dv, dts), np.array([lat, 2.2, 0.0]),
               {**DEFAULTS, 'fine_filter': ff, 'gyro_arw_dpsh': 0.0005,
-               'accel_vrw_ug_rthz': 5.0})
+               'accel_vrw_ug_rthz': 5.0, 'zero_velocity_sigma': told})
     assert c.figures['base_velocity_v_mps'] == pytest.approx(0.5 * 2 * np.pi / 6 / np.sqrt(2),
                                                              rel=0.1)
-    assert c.figures['base_velocity_h_mps'] < 0.02
-    assert ('zero_velocity_sigma_up' in c.widened) == widened
-    if widened:
-        assert c.widened['zero_velocity_sigma_up'] == pytest.approx(
-            c.figures['base_velocity_v_mps'])
+    assert c.figures['base_velocity_h_mps'] < 3 * 3.2e-5
+    if told:
+        assert ('zero_velocity_sigma_up' in c.widened) == widened
+        if widened:
+            assert c.widened['zero_velocity_sigma_up'] == pytest.approx(
+                c.figures['base_velocity_v_mps'])
+        assert not c.read
+    else:
+        assert not c.widened and not c.findings
+        assert c.read['zero_velocity_sigma'] == ZERO_VELOCITY_FLOOR
+        assert ('zero_velocity_sigma_up' in c.read) == widened
+        if widened:
+            assert c.read['zero_velocity_sigma_up'] == pytest.approx(
+                READ_MARGIN * c.figures['base_velocity_v_mps'])
+        assert 'zero-velocity sigma read' in c.note
     # the horizontal rows, which carry tilt and heading, keep their noise
     assert 'zero_velocity_sigma' not in c.widened
 

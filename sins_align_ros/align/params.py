@@ -20,6 +20,10 @@ STILL_FILTERS, ROBUST_FILTERS, NAV_FILTERS = Names(STILL), Names(ROBUST), Names(
 MOVING_FILTERS = Names(*AIDED)
 COARSE_METHODS = ('auto', 'analytic', 'inertial_frame')
 PREPROCESS_WAVELETS = ('sym8', 'sym4', 'db4', 'db8', 'coif2')
+#: the zero-velocity sigma (m/s) of a still-base filter whose sigma was left to the data
+#: (``zero_velocity_sigma`` 0) and not read: no self-check, or no base velocity measured
+#: (the default value until session 53)
+ZERO_VELOCITY_UNREAD = 0.01
 
 
 @dataclass(frozen=True)
@@ -182,11 +186,15 @@ ALIGNMENT_PARAMS = (
           'accel_scale_factor_ppm: an acceleration along one axis leaks into the other two, '
           'and gravity into the horizontal axes as a bias)', 0.0, 1e5),
     Param('accel_vrw_ug_rthz', 10.0, 'accelerometer white noise, micro-g/sqrt(Hz)', 0.0, 1e5),
-    Param('zero_velocity_sigma', 0.01, 'zero-velocity measurement noise, m/s (still base)',
-          1e-5, 10.0),
+    Param('zero_velocity_sigma', 0.0, 'zero-velocity measurement noise, m/s (still base); '
+          '0 = read from the data: the self-check\'s base velocity at rest (its RMS in the '
+          'coarse window, x1.5, at least 3e-4 m/s; 0.01 where it is not measured). A set '
+          'value is a claim about the base, widened only where the data show more',
+          0.0, 10.0),
     Param('zero_velocity_sigma_up', 0.0, 'vertical zero-velocity measurement noise, m/s '
           '(stationary12, which measures the vertical velocity: a moored ship heaves); '
-          '0 = zero_velocity_sigma', 0.0, 10.0),
+          '0 = zero_velocity_sigma (read from the vertical base velocity where that is 0 too)',
+          0.0, 10.0),
     Param('fine_update_hz', 10.0, 'fine-filter measurement rate, Hz', 0.1, 1000.0),
     Param('max_stages', 3, 'staged re-initialisations of the stationary filter after '
           'convergence (seed 002 sec. 4; 1 = none), made only after an initial misalignment '

@@ -38,8 +38,12 @@ def noise_spec(cfg):
 
 
 def zero_velocity_sigmas(cfg):
-    """East, north, up zero-velocity sigmas (3,) m/s of the stationary filter."""
-    zv = cfg['zero_velocity_sigma']
+    """East, north, up zero-velocity sigmas (3,) m/s of the stationary filter.
+
+    A sigma left to the data (0) that the self-check did not read (no self-check, or a base
+    not at rest in the coarse window) is ``params.ZERO_VELOCITY_UNREAD``.
+    """
+    zv = cfg['zero_velocity_sigma'] or prm.ZERO_VELOCITY_UNREAD
     return np.array([zv, zv, cfg['zero_velocity_sigma_up'] or zv])
 
 

@@ -225,6 +225,17 @@ def gyrocompass_plan(noise, lat, T, moving=False):
     return var, rate_var, span
 
 
+def window_plan(window, noise, lat, method, moving):
+    """Return :func:`gyrocompass_plan` of the coarse ``window`` (see :func:`window_heading`).
+
+    None where no gyrocompass heading is taken: an inertial-frame fit (``method``), or the
+    plan says no.
+    """
+    if method != 'analytic':
+        return None
+    return gyrocompass_plan(seen_noise(window, noise), lat, float(np.sum(window[3])), moving)
+
+
 def window_heading(fine, C_b_n, window, noise, lat, method, moving):
     """Give a still-base stage the window's gyrocompass heading and live segments.
 
@@ -241,8 +252,7 @@ def window_heading(fine, C_b_n, window, noise, lat, method, moving):
     or None (nothing done: an inertial-frame fit, or :func:`gyrocompass_plan` says no).
     """
     T = float(np.sum(window[3]))
-    plan = None if method != 'analytic' else gyrocompass_plan(
-        seen_noise(window, noise), lat, T, moving)
+    plan = window_plan(window, noise, lat, method, moving)
     if plan is None:
         return None
     var, rate_var, span = plan

@@ -19,10 +19,16 @@ the finding is reported. :func:`check` runs the checks in this order:
 * **Base velocity at rest** (the zero-velocity measurement): the specific force
   integrated in the initial body frame, levelled, less its best quadratic over each
   :data:`VELOCITY_CHUNK_S` seconds, is the velocity the base really has (sway, heave,
-  people walking on it) plus a little sensor random walk; its RMS widens
-  ``zero_velocity_sigma`` when more than :data:`~.noise_estimates.NOISE_RATIO` times larger
-  (horizontal; the vertical one widens ``zero_velocity_sigma_up`` for ``stationary12``,
-  which measures the vertical velocity: a moored ship's 0.5 m heave moves it at 0.5 m/s).
+  people walking on it) plus a little sensor random walk (the vertical is each piece's own
+  mean specific force). Left to the data (``zero_velocity_sigma`` 0, the default), the
+  zero-velocity sigma is this RMS with a margin (:data:`READ_MARGIN`, at least
+  :data:`ZERO_VELOCITY_FLOOR`): the default 0.01 m/s of sessions before 53 was 30-100 times
+  what a moored ship or a still base shows, and kept the moored ship's heading at 3 times
+  the accelerometers' limit for a minute. A configured sigma is a claim, widened only:
+  the RMS widens ``zero_velocity_sigma`` when more than
+  :data:`~.noise_estimates.NOISE_RATIO` times larger (horizontal; the vertical one widens
+  ``zero_velocity_sigma_up`` for ``stationary12``, which measures the vertical velocity: a
+  moored ship's 0.5 m heave moves it at 0.5 m/s).
 * **Mounting** (the vehicle frame is near level): the window's mean specific force, in the
   vehicle frame the told ``imu_mounting_rpy_deg`` gives, points within
   ``mounting_check_max_tilt_deg`` (45 deg) of up on any vehicle at rest or under way (a
@@ -58,6 +64,19 @@ from .noise_estimates import NOISE_RATIO, coherent, difference_density, white_de
 
 #: seconds of the pieces :func:`base_velocity_rms` fits a quadratic to
 VELOCITY_CHUNK_S = 10.0
+#: the figure (``SelfCheck.figures``) each zero-velocity sigma is read from
+MEASURED_BY = {'zero_velocity_sigma': 'base_velocity_h_mps',
+               'zero_velocity_sigma_up': 'base_velocity_v_mps'}
+#: a zero-velocity sigma read from the data is the measured RMS times this, an upper
+#: confidence bound: over the shortest window (20 s: two pieces, two axes) the RMS of a
+#: random walk less its quadratic falls under 1/1.24 of its expectation in 5 % of draws and
+#: under 1/1.35 in 1 % (4000 seeded draws); a sway's RMS, near a sinusoid's, scatters less
+READ_MARGIN = 1.5
+#: the least zero-velocity sigma read from the data (m/s): a still base's own figure is
+#: the accelerometers' random walk (navigation grade 0.06 mm/s), which the filter carries
+#: as process noise already; below this the moored ship's heading is the same to 0.01'
+#: (exact zero velocity, 1e-5 m/s, against 3e-4 m/s), and R stays well-conditioned
+ZERO_VELOCITY_FLOOR = 3e-4
 #: a gyro bias sigma above this fraction of the horizontal Earth rate: no heading at rest
 HEADING_BIAS_FRACTION = 0.5
 #: the heading warning when the latitude is unknown
@@ -97,10 +116,12 @@ class SelfCheck:
     """Outcome of :func:`check`.
 
     ``widened``: parameter name -> new value (datasheet units) where the data contradict
-    the configured model; ``findings``: one sentence per widened parameter (warnings);
-    ``note``: which checks were skipped and why (informational); ``at_rest``: nothing
-    says the base moves (as given); ``still``: the window shows no motion either;
-    ``heading_observable``: the gyro can find north at rest; ``mounting_doubt``: why the
+    the configured model; ``read``: the same where the parameter was left to the data (the
+    zero-velocity sigmas, 0), said in ``note``; ``findings``: one sentence per widened
+    parameter (warnings); ``note``: which checks were skipped and why (informational);
+    ``at_rest``: nothing says the base moves (as given); ``still``: the window shows no
+    motion either; ``heading_observable``: the gyro can find north at rest;
+    ``mounting_doubt``: why the
     vehicle frame cannot be the told one (the mounting check; '' when it can be);
     ``latitude``: ``(lat, sigma)`` rad estimated from the gyros when the latitude was not
     set (None otherwise); ``latitude_unknown``: it was not set and could not be estimated
@@ -109,6 +130,7 @@ class SelfCheck:
     """
 
     widened: dict = field(default_factory=dict)
+    read: dict = field(default_factory=dict)
     findings: list = field(default_factory=list)
     note: str = ''
     at_rest: bool = True
@@ -131,16 +153,19 @@ def base_velocity_rms(dth, dvv, dts):
     if k < 1:
         return float('nan'), float('nan')
     V = velocity_integral_b0(dth, dvv)[1][:k * m].reshape(k, m, 3)
-    up = dvv.sum(axis=0)
-    up /= np.linalg.norm(up)
     t = np.cumsum(dts[:m]) - dts[0]
     A = np.column_stack([np.ones(m), t, t * t])
     # the quadratic fit of each chunk, A (A^+ V): the projector A A^+ itself is (m, m), and
     # applying it cost m^2 per chunk (3 s of a 1 kHz IMU's coarse end, bench/scaling.py)
     coef = np.einsum('ij,kjl->kil', np.linalg.pinv(A), V)
     res = V - np.einsum('ij,kjl->kil', A, coef)
-    vert = res @ up
-    horiz = res - vert[..., None] * up
+    # each piece's own vertical, its mean specific force: b0 is inertial, so the local
+    # vertical turns in it with the Earth (0.25 deg a minute), and against the window's
+    # mean vertical a moored ship's 0.35 m/s heave leaked 0.4 mm/s into the horizontal
+    up = coef[:, 1, :] + coef[:, 2, :] * t[-1]
+    up /= np.linalg.norm(up, axis=1, keepdims=True)
+    vert = np.einsum('kjl,kl->kj', res, up)
+    horiz = res - vert[..., None] * up[:, None, :]
     return (math.sqrt(float(np.mean(np.sum(horiz * horiz, axis=-1))) / 2.0),
             math.sqrt(float(np.mean(vert * vert))))
 
@@ -211,9 +236,12 @@ def check(window, position, cfg, at_rest=True, gnss=None):
 
 
 def _base_velocity(out, cfg, dth, dvv, dts):
-    """Widen the zero-velocity sigmas to the velocity the base shows at rest.
+    """Read or widen the zero-velocity sigmas from the velocity the base shows at rest.
 
-    The horizontal RMS widens ``zero_velocity_sigma``; for ``stationary12``, which
+    A sigma left to the data (``zero_velocity_sigma`` 0, the default) is read: the
+    measured RMS times :data:`READ_MARGIN`, at least :data:`ZERO_VELOCITY_FLOOR`
+    (``out.read``, an informational note). A configured sigma is the user's claim, widened
+    only: the horizontal RMS widens ``zero_velocity_sigma``; for ``stationary12``, which
     measures the vertical velocity too, the vertical RMS (heave) widens
     ``zero_velocity_sigma_up`` apart from it (one sigma for both gave the horizontal rows,
     which carry the tilt and heading, a moored ship's heave: heading sigma 4-5x its error).
@@ -226,10 +254,19 @@ def _base_velocity(out, cfg, dth, dvv, dts):
         axes.append(('zero_velocity_sigma_up', vert, cfg['zero_velocity_sigma_up'] or zv,
                      'vertically'))
     for name, v, model, how in axes:
-        if v > NOISE_RATIO * model:
+        if model == 0.0:
+            if math.isfinite(v):
+                out.read[name] = max(ZERO_VELOCITY_FLOOR, READ_MARGIN * v)
+                out.figures[name + '_read'] = out.read[name]
+        elif v > NOISE_RATIO * model:
             out.widened[name] = v
             out.findings.append(f'the base moves {how} at {v:.3g} m/s RMS at rest (sway, heave '
                                 f'or disturbance), {name} {model:.3g} m/s configured: widened')
+    if out.read:
+        out.note = '; '.join(n for n in (out.note, 'zero-velocity sigma read from the base '
+                                         'velocity at rest: ' + ', '.join(
+                                             f'{k} {v:.2g} m/s' for k, v in out.read.items()))
+                             if n)
 
 
 def _mounting(out, cfg, f_b):
