@@ -123,23 +123,20 @@ def hand_over(window, cfg, noise, clock, gnss, headings, install):
         if heading_measured:
             res = reprocess.measured_heading_prior(res, float(sigma_window[2]))
         clock.t_last = clock.t_first
-    takes_heading = replay and heading_known and not aided and reprocess.window_plan(
-        window, noise, position[0], coarse_info['method'],
-        coarse_info['motion_detected']) is not None
+    plan = reprocess.window_plan(window, noise, position[0], coarse_info['method'],
+                                 coarse_info['motion_detected']) if (
+        replay and heading_known and not aided) else None
     if check is not None and check.read:
-        _read_zero_velocity(cfg, check, takes_heading)
+        _read_zero_velocity(cfg, check, plan is not None)
     fine, engine_warnings = fine_stage_for(res, cfg, noise, bool(gnss.vels), heading_known,
                                            heading_measured, clock, install, headings)
     warnings.extend(engine_warnings)
     if check is not None:
         fine.mounting_doubt = check.mounting_doubt
+    if plan is not None:
+        sigma = reprocess.window_heading(fine, C_window, window, plan, position[0])
+        coarse_info['window_heading_sigma_deg'] = float(np.degrees(sigma))
     if replay:
-        if heading_known and not aided:
-            sigma = reprocess.window_heading(fine, C_window, window, noise, position[0],
-                                             coarse_info['method'],
-                                             coarse_info['motion_detected'])
-            if sigma is not None:
-                coarse_info['window_heading_sigma_deg'] = float(np.degrees(sigma))
         coarse_info['reprocessed_s'] = float(window[0][-1] - window[0][0] + window[3][0])
     return FineStart(cfg, noise, aided, position, position_source, check, coarse_info,
                      heading_measured, warnings, fine, install,
@@ -158,7 +155,8 @@ def _read_zero_velocity(cfg, check, takes_heading):
     (test_reprocess: the heading error's mean square in sigmas 2.8 at 89 s over 12 seeds,
     1.8 with the unread sigma, against a 2.0 bound; over 40 seeds and 300 s it peaks at
     1.48 at 120 s with the read sigma, at 1.17 with the unread). The stage keeps
-    ``params.ZERO_VELOCITY_UNREAD`` there.
+    ``params.ZERO_VELOCITY_UNREAD`` there, widened as a configured one would be
+    (``check.unread``).
     """
     if not takes_heading:
         cfg.update(check.read)
@@ -167,10 +165,7 @@ def _read_zero_velocity(cfg, check, takes_heading):
                             'window\'s gyrocompass heading is taken (the filter keeps '
                             f'{prm.ZERO_VELOCITY_UNREAD:g} m/s unless the base moves more, '
                             'so the window\'s gyro samples do not count twice)'))
-    for name in check.read:          # the unread sigma, widened as a configured one would be
-        v = check.figures[self_check.MEASURED_BY[name]]
-        if v > self_check.NOISE_RATIO * prm.ZERO_VELOCITY_UNREAD:
-            cfg[name] = v
+    cfg.update(check.unread)
 
 
 def fine_stage_for(start, cfg, noise, with_velocity, heading_known, heading_measured, clock,

@@ -228,33 +228,28 @@ def gyrocompass_plan(noise, lat, T, moving=False):
 def window_plan(window, noise, lat, method, moving):
     """Return :func:`gyrocompass_plan` of the coarse ``window`` (see :func:`window_heading`).
 
-    None where no gyrocompass heading is taken: an inertial-frame fit (``method``), or the
-    plan says no.
+    ``noise`` the sensor model, ``lat`` rad, ``method`` the coarse method that ran,
+    ``moving`` its window showed motion. None where no gyrocompass heading is taken: an
+    inertial-frame fit, or the plan says no.
     """
     if method != 'analytic':
         return None
     return gyrocompass_plan(seen_noise(window, noise), lat, float(np.sum(window[3])), moving)
 
 
-def window_heading(fine, C_b_n, window, noise, lat, method, moving):
+def window_heading(fine, C_b_n, window, plan, lat):
     """Give a still-base stage the window's gyrocompass heading and live segments.
 
     ``fine``: the stage at the window's start; ``C_b_n`` (3, 3): the analytic coarse
-    attitude of the window (the gyros and accelerometers averaged, ``method`` the coarse
-    method that ran, ``moving`` its window showed motion); ``noise`` the sensor model,
-    ``lat`` rad. The heading is one measurement
-    (:meth:`~..engines.stationary.StationaryEngine.gyrocompass_update`, the biases in its
-    row), its variance from :func:`gyrocompass_plan` with the noises the samples show
-    where they exceed the configured ones (:func:`~.coarse_window.seen_noise`). The live
-    samples after the window (``skip`` the window's samples, which :class:`CatchUp` runs
-    next) give more such headings in segments
-    (:class:`~..engines.gyrocompass.GyroSegments`). Returns the heading's 1-sigma (rad),
-    or None (nothing done: an inertial-frame fit, or :func:`gyrocompass_plan` says no).
+    attitude of the window (the gyros and accelerometers averaged); ``plan``: the window's
+    :func:`window_plan` (not None), with the noises the samples show where they exceed the
+    configured ones (:func:`~.coarse_window.seen_noise`); ``lat`` rad. The heading is one
+    measurement (:meth:`~..engines.stationary.StationaryEngine.gyrocompass_update`, the
+    biases in its row). The live samples after the window (``skip`` the window's samples,
+    which :class:`CatchUp` runs next) give more such headings in segments
+    (:class:`~..engines.gyrocompass.GyroSegments`). Returns the heading's 1-sigma (rad).
     """
     T = float(np.sum(window[3]))
-    plan = window_plan(window, noise, lat, method, moving)
-    if plan is None:
-        return None
     var, rate_var, span = plan
     fine.engine.gyrocompass_update(yaw_of(C_b_n), var)
     fine.engine.gyro_segments = gyrocompass.GyroSegments(rate_var, lat, span - T, skip=T)

@@ -61,12 +61,10 @@ from .gnss_noise_check import gnss_check
 from .grade_check import ACCEL_VRW_BY_GYRO_NOISE, _class_value, _noise
 from .latitude_estimate import _latitude_unknown
 from .noise_estimates import NOISE_RATIO, coherent, difference_density, white_density
+from ..params import ZERO_VELOCITY_UNREAD
 
 #: seconds of the pieces :func:`base_velocity_rms` fits a quadratic to
 VELOCITY_CHUNK_S = 10.0
-#: the figure (``SelfCheck.figures``) each zero-velocity sigma is read from
-MEASURED_BY = {'zero_velocity_sigma': 'base_velocity_h_mps',
-               'zero_velocity_sigma_up': 'base_velocity_v_mps'}
 #: a zero-velocity sigma read from the data is the measured RMS times this, an upper
 #: confidence bound: over the shortest window (20 s: two pieces, two axes) the RMS of a
 #: random walk less its quadratic falls under 1/1.24 of its expectation in 5 % of draws and
@@ -119,7 +117,9 @@ class SelfCheck:
 
     ``widened``: parameter name -> new value (datasheet units) where the data contradict
     the configured model; ``read``: the same where the parameter was left to the data (the
-    zero-velocity sigmas, 0), said in ``note``; ``findings``: one sentence per widened
+    zero-velocity sigmas, 0), said in ``note``; ``unread``: those the stage takes where it
+    does not use ``read`` (``params.ZERO_VELOCITY_UNREAD`` widened as a configured figure
+    would be: where absent, that figure); ``findings``: one sentence per widened
     parameter (warnings); ``note``: which checks were skipped and why (informational);
     ``at_rest``: nothing says the base moves (as given); ``still``: the window shows no
     motion either; ``heading_observable``: the gyro can find north at rest;
@@ -133,6 +133,7 @@ class SelfCheck:
 
     widened: dict = field(default_factory=dict)
     read: dict = field(default_factory=dict)
+    unread: dict = field(default_factory=dict)
     findings: list = field(default_factory=list)
     note: str = ''
     at_rest: bool = True
@@ -256,11 +257,14 @@ def _base_velocity(out, cfg, dth, dvv, dts):
         axes.append(('zero_velocity_sigma_up', vert, cfg['zero_velocity_sigma_up'] or zv,
                      'vertically'))
     for name, v, model, how in axes:
+        widen = v > NOISE_RATIO * (model or ZERO_VELOCITY_UNREAD)
         if model == 0.0:
             if math.isfinite(v):
                 out.read[name] = max(ZERO_VELOCITY_FLOOR, READ_MARGIN * v)
                 out.figures[name + '_read'] = out.read[name]
-        elif v > NOISE_RATIO * model:
+            if widen:
+                out.unread[name] = v
+        elif widen:
             out.widened[name] = v
             out.findings.append(f'the base moves {how} at {v:.3g} m/s RMS at rest (sway, heave '
                                 f'or disturbance), {name} {model:.3g} m/s configured: widened')
