@@ -32,14 +32,14 @@ sys.path.insert(0, str(ROOT))
 
 from sins_align_ros.eval.scenarios import named  # noqa: E402
 from sins_align_ros.nav import earth  # noqa: E402
-from sins_align_ros.sim.presets import SENSOR_GRADES  # noqa: E402
 from sins_align_ros.units import DPSH, UG  # noqa: E402
 
-#: (name, IMU grade or None for the scenario's own, latitude deg or None, seconds, sways)
-CASES = (('ship_sway (marine IMU, 45.8 deg N, sways)', 'ship_sway', None, None, 600.0, True),
-         ('still navigation grade, 35 deg N', 'static_navigation', None, 35.0, 120.0, False),
-         ('still navigation grade, 60 deg N', 'static_navigation', None, 60.0, 120.0, False),
-         ('still marine IMU, 45.8 deg N, 600 s', 'ship_sway', None, None, 600.0, False))
+#: (name, scenario whose IMU and latitude are drawn, latitude deg or None for the
+#: scenario's, seconds, sways)
+CASES = (('ship_sway (marine IMU, 45.8 deg N, sways)', 'ship_sway', None, 600.0, True),
+         ('still navigation grade, 35 deg N', 'static_navigation', 35.0, 120.0, False),
+         ('still navigation grade, 60 deg N', 'static_navigation', 60.0, 120.0, False),
+         ('still marine IMU, 45.8 deg N, 600 s', 'ship_sway', None, 600.0, False))
 #: the first published row (s) and the step (s) of the estimate's rows
 T_FIRST, DT = 20.0, 0.1
 #: runs drawn per block (memory)
@@ -93,9 +93,9 @@ def main():
     rng = np.random.default_rng(args.seed)
     rows = []
     t0 = time.time()
-    for name, scen, grade, lat_deg, T, sways in CASES:
+    for name, scen, lat_deg, T, sways in CASES:
         sc = named(scen)
-        imu = SENSOR_GRADES[grade] if grade else sc.imu
+        imu = sc.imu
         lat = np.radians(sc.trajectory.lat_deg if lat_deg is None else lat_deg)
         g = earth.gravity(lat, 0.0)
         runs, share = draw(rng, args.runs, T, imu.accel_vrw_ug_rthz * UG,
